@@ -1,0 +1,136 @@
+#include "collision/collide.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+namespace ces {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+constexpr std::size_t kChunk = 128;  // fixed, so contact order never depends on threads
+
+double smallest_radius(const ParticleShape& s) {
+  return *std::min_element(s.radii.begin(), s.radii.end());
+}
+
+// A deterministic normal for coincident centres (degenerate spawns).
+Vec3 safe_direction(const Vec3& d, double len) {
+  return len > 0.0 ? Vec3(d / len) : Vec3::UnitY();
+}
+
+void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double envelope,
+                   int a, int b, double mu, double e, const ContactKey& key, Contacts& out) {
+  const Vec3 d = cb - ca;
+  const double len = d.norm();
+  const double gap = len - ra - rb;
+  if (gap >= envelope) return;
+  const Vec3 n = safe_direction(d, len);
+  out.push(a, b, n, ca + n * (ra + 0.5 * gap), gap, std::min(ra, rb), mu, e, key);
+}
+
+template <class Fill>
+void run_chunked(std::size_t n, std::vector<Contacts>& chunks, Contacts& out, Fill fill) {
+  const std::size_t count = (n + kChunk - 1) / kChunk;
+  chunks.resize(count);
+#pragma omp parallel for schedule(static)
+  for (std::size_t ch = 0; ch < count; ++ch) {
+    chunks[ch].clear();
+    fill(ch * kChunk, std::min(n, (ch + 1) * kChunk), chunks[ch]);
+  }
+  for (std::size_t ch = 0; ch < count; ++ch) out.append(chunks[ch]);
+}
+
+}  // namespace
+
+void Collider::collide(const Model& model, const Particles& p, const Bodies& bodies,
+                       Contacts& out) {
+  const auto t0 = Clock::now();
+  out.clear();
+  const std::size_t n = p.size();
+  const double h = model.step;
+  centers_.resize(n);
+  reach_.resize(n);
+  envelope_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const ParticleShape& s = model.shapes[std::size_t(p.shape[i])];
+    // The envelope grows with the distance the particle can travel this step
+    // (translation plus the swing of its outermost sphere), so nothing tunnels.
+    const double bounding = s.bounding_radius * p.scale[i];
+    const double travel = (p.velocity[i].norm() + p.angular_velocity[i].norm() * bounding) * h;
+    envelope_[i] = model.contact.envelope_fraction * smallest_radius(s) * p.scale[i] + travel;
+    centers_[i] = p.position[i];
+    reach_[i] = bounding + envelope_[i];
+  }
+  particle_pairs(model, p, out);
+  for (std::size_t b = 0; b < model.bodies.size(); ++b) body_contacts(model, p, bodies, int(b), out);
+  narrowphase_seconds_ = seconds_since(t0) - broadphase_seconds_;
+}
+
+void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& out) {
+  const auto t0 = Clock::now();
+  grid_.find_pairs(centers_, reach_, pairs_);
+  broadphase_seconds_ = seconds_since(t0);
+  const auto& mat = model.materials;
+  run_chunked(pairs_.size(), chunks_, out, [&](std::size_t begin, std::size_t end, Contacts& part) {
+    for (std::size_t k = begin; k < end; ++k) {
+      const auto [i, j] = pairs_[k];
+      const auto ui = std::size_t(i), uj = std::size_t(j);
+      const ParticleShape& si = model.shapes[std::size_t(p.shape[ui])];
+      const ParticleShape& sj = model.shapes[std::size_t(p.shape[uj])];
+      const double mu = mat.friction(p.material[ui], p.material[uj]);
+      const double e = mat.restitution(p.material[ui], p.material[uj]);
+      const double envelope = envelope_[ui] + envelope_[uj];
+      const double sci = p.scale[ui], scj = p.scale[uj];
+      for (std::size_t a = 0; a < si.centers.size(); ++a) {
+        const Vec3 ca = p.position[ui] + p.orientation[ui] * (sci * si.centers[a]);
+        for (std::size_t b = 0; b < sj.centers.size(); ++b) {
+          const Vec3 cb = p.position[uj] + p.orientation[uj] * (scj * sj.centers[b]);
+          const ContactKey key{p.id[ui], p.id[uj], std::uint32_t(a), std::uint32_t(b)};
+          sphere_sphere(ca, sci * si.radii[a], cb, scj * sj.radii[b], envelope, i, j, mu, e, key,
+                        part);
+        }
+      }
+    }
+  });
+}
+
+void Collider::body_contacts(const Model& model, const Particles& p, const Bodies& bodies,
+                             int body, Contacts& out) {
+  const RigidBody& rb = model.bodies[std::size_t(body)];
+  const Pose& pose = bodies.pose[std::size_t(body)];
+  const geo::Aabb bounds = geo::local_bounds(rb.shape);
+  const int solver_index = int(p.size()) + body;
+  const auto& mat = model.materials;
+  run_chunked(p.size(), chunks_, out, [&](std::size_t begin, std::size_t end, Contacts& part) {
+    std::vector<geo::SurfaceHit> hits;
+    for (std::size_t i = begin; i < end; ++i) {
+      // Cull by the particle's bounding sphere in the body frame.
+      const Vec3 local_centre = pose.inverse_apply(p.position[i]);
+      if (!bounds.inflated(reach_[i]).overlaps({local_centre, local_centre})) continue;
+      const ParticleShape& s = model.shapes[std::size_t(p.shape[i])];
+      const double mu = mat.friction(rb.material, p.material[i]);
+      const double e = mat.restitution(rb.material, p.material[i]);
+      for (std::size_t k = 0; k < s.centers.size(); ++k) {
+        const Vec3 c = p.position[i] + p.orientation[i] * (p.scale[i] * s.centers[k]);
+        const double r = p.scale[i] * s.radii[k];
+        hits.clear();
+        geo::query(rb.shape, pose.inverse_apply(c), r + envelope_[i], hits);
+        for (const geo::SurfaceHit& hit : hits) {
+          const double gap = hit.distance - r;
+          if (gap >= envelope_[i]) continue;
+          const Vec3 n = pose.orientation * hit.normal;
+          const ContactKey key{kBodyTag | std::uint64_t(body), p.id[i], hit.feature,
+                               std::uint32_t(k)};
+          part.push(solver_index, int(i), n, c - n * (r + 0.5 * gap), gap, r, mu, e, key);
+        }
+      }
+    }
+  });
+}
+
+}  // namespace ces

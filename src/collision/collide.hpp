@@ -1,0 +1,35 @@
+// The collide stage: particles against particles and against machine bodies.
+#pragma once
+#include <vector>
+
+#include "collision/broadphase.hpp"
+#include "collision/contacts.hpp"
+#include "dynamics/model.hpp"
+#include "dynamics/state.hpp"
+
+namespace ces {
+
+class Collider {
+ public:
+  // Fills `out` with every pair closer than its collision envelope, in a
+  // deterministic order: particle pairs by (i, j), then particle-body
+  // contacts by (body, particle, sphere, feature).
+  void collide(const Model& model, const Particles& particles, const Bodies& bodies,
+               Contacts& out);
+  double broadphase_seconds() const { return broadphase_seconds_; }
+  double narrowphase_seconds() const { return narrowphase_seconds_; }
+
+ private:
+  double broadphase_seconds_ = 0, narrowphase_seconds_ = 0;
+  void particle_pairs(const Model& model, const Particles& p, Contacts& out);
+  void body_contacts(const Model& model, const Particles& p, const Bodies& bodies, int body,
+                     Contacts& out);
+
+  std::vector<Vec3> centers_;
+  std::vector<double> reach_, envelope_;
+  std::vector<std::pair<std::int32_t, std::int32_t>> pairs_;
+  std::vector<Contacts> chunks_;
+  GridBroadphase grid_;
+};
+
+}  // namespace ces

@@ -1,0 +1,154 @@
+// The compiled, immutable description of a simulation: what a scene compiler
+// builds and the stepper reads. Nothing here knows about YAML or files.
+#pragma once
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/math.hpp"
+#include "geometry/shapes.hpp"
+
+namespace ces {
+
+struct Material {
+  std::string name;
+  double density = 1000.0;     // kg/m^3
+  double friction = 0.3;       // Coulomb coefficient
+  double restitution = 0.0;    // normal coefficient of restitution
+};
+
+// Explicit values for one pair of materials; unset fields fall back to the
+// combination rule (see MaterialTable).
+struct MaterialPair {
+  int a = 0, b = 0;
+  std::optional<double> friction;
+  std::optional<double> restitution;
+};
+
+// Friction and restitution for every pair of materials. Combination rule for
+// pairs without an override: the smaller of the two coefficients (as Chrono
+// does): the less grippy / less bouncy surface governs, which keeps a slippery
+// liner slippery whatever touches it.
+class MaterialTable {
+ public:
+  MaterialTable() = default;
+  MaterialTable(std::vector<Material> materials, const std::vector<MaterialPair>& pairs);
+  const std::vector<Material>& materials() const { return materials_; }
+  double friction(int a, int b) const { return friction_[index(a, b)]; }
+  double restitution(int a, int b) const { return restitution_[index(a, b)]; }
+
+ private:
+  std::size_t index(int a, int b) const { return std::size_t(a) * materials_.size() + std::size_t(b); }
+  std::vector<Material> materials_;
+  std::vector<double> friction_, restitution_;
+};
+
+// A rigid particle: one sphere or a rigid cluster of (possibly overlapping)
+// spheres. Sphere centres are given in the principal frame with the centre
+// of mass at the origin, so the inertia tensor is diagonal.
+struct ParticleShape {
+  std::vector<Vec3> centers;
+  std::vector<double> radii;
+  double volume = 0.0;
+  Vec3 unit_inertia = Vec3::Zero();  // principal inertia / mass (m^2)
+  double bounding_radius = 0.0;       // about the centre of mass
+  bool is_sphere() const { return centers.size() == 1; }
+};
+
+// Builds a ParticleShape from spheres given in any frame: computes the union's
+// volume, centre of mass and inertia (overlaps counted once), then moves the
+// spheres to the principal frame. `frame` receives the pose of the principal
+// frame in the input frame.
+ParticleShape make_particle_shape(const std::vector<Vec3>& centers,
+                                  const std::vector<double>& radii,
+                                  Pose* frame = nullptr);
+
+enum class BodyKind { Static, Kinematic, Dynamic };
+
+// Prescribed motion of a kinematic body: rotation about an axis through
+// `center` at `angular_speed` (rad/s, right-handed about `axis`), plus a
+// constant translation velocity. The pose is evaluated in closed form at each
+// time, so it never drifts.
+struct PrescribedMotion {
+  Vec3 axis = Vec3::UnitZ();
+  Vec3 center = Vec3::Zero();
+  double angular_speed = 0.0;
+  Vec3 linear_velocity = Vec3::Zero();
+};
+
+// A machine part: drum, brush, wall, hopper, splitter. Its shape is in the
+// body frame; `pose` is the body frame at t = 0 (for dynamic bodies the body
+// frame origin is the centre of mass).
+struct RigidBody {
+  std::string name;
+  BodyKind kind = BodyKind::Static;
+  geo::Shape shape;
+  Pose pose;
+  int material = 0;
+  PrescribedMotion motion;          // kinematic only
+  double mass = 0.0;                // dynamic only
+  Vec3 inertia = Vec3::Ones();      // dynamic only: principal, body frame
+  Vec3 velocity = Vec3::Zero();     // dynamic: initial
+  Vec3 angular_velocity = Vec3::Zero();
+};
+
+enum class JointType { Revolute, Prismatic, Fixed };
+
+// A bilateral joint between two rigid bodies (body_a = -1: the ground).
+// `point` and `axis` are in world coordinates at t = 0.
+struct Joint {
+  JointType type = JointType::Fixed;
+  int body_a = -1;
+  int body_b = 0;
+  Vec3 point = Vec3::Zero();
+  Vec3 axis = Vec3::UnitZ();
+};
+
+// A motor drives a joint's free coordinate inside the same solve.
+//  - Speed on a revolute joint: relative angular speed about the axis (rad/s).
+//  - Speed on a prismatic joint: relative speed along the axis (m/s).
+//  - Position on a prismatic joint: slide to `target` (m from the t = 0
+//    position) at no more than `max_speed`.
+// `max_force` bounds the motor impulse per step (force or torque).
+struct Motor {
+  enum class Mode { Speed, Position };
+  int joint = 0;
+  Mode mode = Mode::Speed;
+  double target = 0.0;
+  double max_speed = std::numeric_limits<double>::infinity();
+  double max_force = std::numeric_limits<double>::infinity();
+};
+
+enum class SolverMethod { APGD, SPG, PGS };
+
+struct SolverSettings {
+  SolverMethod method = SolverMethod::APGD;
+  int max_iterations = 100;
+  double tolerance = 1e-6;          // residual (m/s), see dynamics/ccp.hpp
+  double pgs_relaxation = 1.0;      // over-relaxation for projected Gauss-Seidel
+  bool warm_start = true;
+};
+
+struct ContactSettings {
+  // Pairs closer than envelope_fraction * (smaller radius) + |v_rel| * step
+  // become contacts before they touch (the |v| h term stops tunnelling).
+  double envelope_fraction = 0.25;
+  double recovery_speed = 0.1;          // m/s: cap on the speed of pushing out overlaps
+  double restitution_threshold = 0.01;  // m/s: slower impacts are plastic
+};
+
+struct Model {
+  double step = 1e-3;  // s
+  Vec3 gravity = Vec3(0, -9.81, 0);
+  MaterialTable materials;
+  std::vector<ParticleShape> shapes;
+  std::vector<RigidBody> bodies;
+  std::vector<Joint> joints;
+  std::vector<Motor> motors;
+  SolverSettings solver;
+  ContactSettings contact;
+  int threads = 0;  // 0: OpenMP default
+};
+
+}  // namespace ces

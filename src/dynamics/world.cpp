@@ -1,0 +1,229 @@
+#include "dynamics/world.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <numeric>
+
+namespace ces {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+Mat3 world_inverse_inertia(const Quat& q, const Vec3& inv_principal) {
+  const Mat3 R = q.toRotationMatrix();
+  return R * inv_principal.asDiagonal() * R.transpose();
+}
+
+// Exponential map: rotate q by the world angular velocity w over h.
+Quat advance(const Quat& q, const Vec3& w, double h) {
+  const double angle = w.norm() * h;
+  if (angle == 0.0) return q;
+  return (Quat(Eigen::AngleAxisd(angle, w.normalized())) * q).normalized();
+}
+
+}  // namespace
+
+StageTimes& StageTimes::operator+=(const StageTimes& o) {
+  hooks += o.hooks;
+  broadphase += o.broadphase;
+  narrowphase += o.narrowphase;
+  forces += o.forces;
+  assemble += o.assemble;
+  solve += o.solve;
+  integrate += o.integrate;
+  return *this;
+}
+
+double StageTimes::total() const {
+  return hooks + broadphase + narrowphase + forces + assemble + solve + integrate;
+}
+
+World::World(std::shared_ptr<const Model> model) : model_(std::move(model)) {
+  if (model_->threads > 0) omp_set_num_threads(model_->threads);
+  const std::size_t nb = model_->bodies.size();
+  bodies_.pose.resize(nb);
+  bodies_.velocity.resize(nb);
+  bodies_.angular_velocity.resize(nb);
+  bodies_.force.assign(nb, Vec3::Zero());
+  bodies_.torque.assign(nb, Vec3::Zero());
+  for (std::size_t i = 0; i < nb; ++i) {
+    const RigidBody& b = model_->bodies[i];
+    bodies_.pose[i] = b.pose;
+    bodies_.velocity[i] = b.kind == BodyKind::Dynamic ? b.velocity : Vec3::Zero();
+    bodies_.angular_velocity[i] = b.kind == BodyKind::Dynamic ? b.angular_velocity : Vec3::Zero();
+  }
+  set_body_motion(0.0);
+  joint_frames_ = make_joint_frames(*model_, bodies_);
+}
+
+void World::prescribed_state(const RigidBody& b, double t, Pose& pose, Vec3& v, Vec3& w) {
+  const PrescribedMotion& m = b.motion;
+  const Vec3 axis = m.axis.normalized();
+  const Quat turn(Eigen::AngleAxisd(m.angular_speed * t, axis));
+  const Vec3 centre = m.center + m.linear_velocity * t;
+  pose.position = centre + turn * (b.pose.position - m.center);
+  pose.orientation = turn * b.pose.orientation;
+  w = m.angular_speed * axis;
+  v = m.linear_velocity + w.cross(pose.position - centre);
+}
+
+void World::set_body_motion(double t) {
+  for (std::size_t i = 0; i < model_->bodies.size(); ++i) {
+    const RigidBody& b = model_->bodies[i];
+    if (b.kind == BodyKind::Kinematic)
+      prescribed_state(b, t, bodies_.pose[i], bodies_.velocity[i], bodies_.angular_velocity[i]);
+  }
+}
+
+std::uint64_t World::add_particle(int shape, double scale, int material, const Vec3& position,
+                                  const Quat& orientation, const Vec3& velocity,
+                                  const Vec3& angular_velocity) {
+  const ParticleShape& s = model_->shapes[std::size_t(shape)];
+  const double density = model_->materials.materials()[std::size_t(material)].density;
+  const double mass = density * s.volume * scale * scale * scale;
+  const Vec3 inertia = mass * scale * scale * s.unit_inertia;
+  const std::uint64_t id = next_id_++;
+  particles_.push(id, shape, scale, material, mass, inertia, position, orientation, velocity,
+                  angular_velocity);
+  return id;
+}
+
+void World::build_solver_bodies() {
+  const Model& m = *model_;
+  const double h = m.step;
+  const std::size_t np = particles_.size(), nb = m.bodies.size();
+  SolverBodies& B = solver_bodies_;
+  B.resize(np + nb);
+  const Particles& p = particles_;
+#pragma omp parallel for schedule(static) if (np > 256)
+  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(np); ++s) {
+    const auto i = std::size_t(s);
+    B.x[i] = p.position[i];
+    B.v[i] = p.velocity[i];
+    B.w[i] = p.angular_velocity[i];
+    B.inv_mass[i] = p.inv_mass[i];
+    B.inv_inertia[i] = world_inverse_inertia(p.orientation[i], p.inv_inertia[i]);
+    B.v_free[i] = p.velocity[i] + h * (m.gravity + p.inv_mass[i] * p.force[i]);
+    B.w_free[i] = p.angular_velocity[i] + h * (B.inv_inertia[i] * p.torque[i]);
+  }
+  for (std::size_t k = 0; k < nb; ++k) {
+    const RigidBody& rb = m.bodies[k];
+    const std::size_t i = np + k;
+    B.x[i] = bodies_.pose[k].position;
+    B.v[i] = B.v_free[i] = bodies_.velocity[k];
+    B.w[i] = B.w_free[i] = bodies_.angular_velocity[k];
+    B.inv_mass[i] = 0.0;
+    B.inv_inertia[i].setZero();
+    if (rb.kind != BodyKind::Dynamic) continue;
+    B.inv_mass[i] = 1.0 / rb.mass;
+    B.inv_inertia[i] = world_inverse_inertia(bodies_.pose[k].orientation, rb.inertia.cwiseInverse());
+    B.v_free[i] += h * (m.gravity + bodies_.force[k] / rb.mass);
+    B.w_free[i] += h * (B.inv_inertia[i] * bodies_.torque[k]);
+  }
+}
+
+const StepStats& World::step() {
+  const Model& m = *model_;
+  const double h = m.step;
+  StepStats stats;
+  stats.step = stats_.step + 1;
+
+  auto t0 = Clock::now();
+  for (Hook& hook : pre_) hook(*this);
+  stats.seconds.hooks = seconds_since(t0);
+
+  collider_.collide(m, particles_, bodies_, contacts_);
+  stats.seconds.broadphase = collider_.broadphase_seconds();
+  stats.seconds.narrowphase = collider_.narrowphase_seconds();
+
+  t0 = Clock::now();
+  std::fill(particles_.force.begin(), particles_.force.end(), Vec3::Zero());
+  std::fill(particles_.torque.begin(), particles_.torque.end(), Vec3::Zero());
+  std::fill(bodies_.force.begin(), bodies_.force.end(), Vec3::Zero());
+  std::fill(bodies_.torque.begin(), bodies_.torque.end(), Vec3::Zero());
+  for (ForceStage& f : forces_) f(*this, contacts_);
+  stats.seconds.forces = seconds_since(t0);
+
+  t0 = Clock::now();
+  build_solver_bodies();
+  rows_.clear();
+  stats.joint_drift = joint_rows(m, joint_frames_, bodies_, int(particles_.size()), h, rows_);
+  problem_.assemble(contacts_, solver_bodies_, rows_, h, m.contact);
+  if (m.solver.warm_start)
+    problem_.warm_start(contacts_.key, prev_keys_, prev_impulse_, prev_gamma_, gamma_);
+  else
+    gamma_.setZero(std::ptrdiff_t(problem_.row_count()));
+  for (std::size_t k = 0; k < contacts_.size(); ++k) {
+    const double pen = -contacts_.gap[k];
+    stats.max_penetration = std::max(stats.max_penetration, pen);
+    stats.max_penetration_relative = std::max(stats.max_penetration_relative, pen / contacts_.radius[k]);
+  }
+  stats.seconds.assemble = seconds_since(t0);
+
+  t0 = Clock::now();
+  stats.solver = solve(problem_, m.solver, gamma_);
+  stats.seconds.solve = seconds_since(t0);
+
+  t0 = Clock::now();
+  integrate(h);
+  remember_impulses();
+  time_ += h;
+  set_body_motion(time_);
+  stats.seconds.integrate = seconds_since(t0);
+
+  stats.time = time_;
+  stats.particles = particles_.size();
+  stats.contacts = contacts_.size();
+  stats_ = stats;
+  t0 = Clock::now();
+  for (Hook& hook : post_) hook(*this);
+  stats_.seconds.hooks += seconds_since(t0);
+  return stats_;
+}
+
+void World::integrate(double h) {
+  // Semi-implicit: positions from the new velocities.
+  std::vector<Vec3>& v = solver_bodies_.v;  // reused as output
+  std::vector<Vec3>& w = solver_bodies_.w;
+  problem_.velocities(gamma_, v, w);
+  const std::size_t np = particles_.size();
+  Particles& p = particles_;
+#pragma omp parallel for schedule(static) if (np > 256)
+  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(np); ++s) {
+    const auto i = std::size_t(s);
+    p.velocity[i] = v[i];
+    p.angular_velocity[i] = w[i];
+    p.position[i] += h * v[i];
+    p.orientation[i] = advance(p.orientation[i], w[i], h);
+  }
+  for (std::size_t k = 0; k < model_->bodies.size(); ++k) {
+    if (model_->bodies[k].kind != BodyKind::Dynamic) continue;
+    bodies_.velocity[k] = v[np + k];
+    bodies_.angular_velocity[k] = w[np + k];
+    bodies_.pose[k].position += h * v[np + k];
+    bodies_.pose[k].orientation = advance(bodies_.pose[k].orientation, w[np + k], h);
+  }
+}
+
+void World::remember_impulses() {
+  problem_.world_impulses(gamma_, impulse_scratch_);
+  const std::size_t n = contacts_.size();
+  order_scratch_.resize(n);
+  std::iota(order_scratch_.begin(), order_scratch_.end(), std::size_t{0});
+  std::sort(order_scratch_.begin(), order_scratch_.end(),
+            [&](std::size_t a, std::size_t b) { return contacts_.key[a] < contacts_.key[b]; });
+  prev_keys_.resize(n);
+  prev_impulse_.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    prev_keys_[k] = contacts_.key[order_scratch_[k]];
+    prev_impulse_[k] = impulse_scratch_[order_scratch_[k]];
+  }
+  prev_gamma_ = gamma_;
+}
+
+}  // namespace ces

@@ -1,0 +1,105 @@
+// The stepper: state arrays advanced by a fixed pipeline of stages
+//   pre-step hooks (feeds) -> collide -> force stages (fields) -> assemble
+//   -> solve CCP -> integrate -> post-step hooks (collectors, observers).
+#pragma once
+#include <Eigen/Core>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "collision/collide.hpp"
+#include "collision/contacts.hpp"
+#include "dynamics/ccp.hpp"
+#include "dynamics/joints.hpp"
+#include "dynamics/model.hpp"
+#include "dynamics/state.hpp"
+
+namespace ces {
+
+struct StageTimes {
+  double hooks = 0, broadphase = 0, narrowphase = 0, forces = 0, assemble = 0, solve = 0,
+         integrate = 0;
+  StageTimes& operator+=(const StageTimes& o);
+  double total() const;
+};
+
+struct StepStats {
+  std::uint64_t step = 0;
+  double time = 0.0;  // at the end of the step
+  std::size_t particles = 0;
+  std::size_t contacts = 0;
+  SolveStats solver;
+  double max_penetration = 0.0;           // m, at the start of the step
+  double max_penetration_relative = 0.0;  // / radius of the smaller sphere
+  double joint_drift = 0.0;               // m, at the start of the step
+  StageTimes seconds;
+};
+
+class World {
+ public:
+  using Hook = std::function<void(World&)>;
+  // A force stage adds to particles().force / torque and bodies' force /
+  // torque; it may read this step's contacts.
+  using ForceStage = std::function<void(World&, const Contacts&)>;
+
+  explicit World(std::shared_ptr<const Model> model);
+
+  const Model& model() const { return *model_; }
+  Particles& particles() { return particles_; }
+  const Particles& particles() const { return particles_; }
+  Bodies& bodies() { return bodies_; }
+  const Bodies& bodies() const { return bodies_; }
+  double time() const { return time_; }
+  std::uint64_t step_count() const { return stats_.step; }
+  const StepStats& last_step() const { return stats_; }
+  const Contacts& contacts() const { return contacts_; }
+  // Last step's impulses: 3 per contact (normal, t1, t2), then bilateral rows.
+  const Eigen::VectorXd& impulses() const { return gamma_; }
+
+  // Mass and inertia from the shape's volume and the material's density.
+  std::uint64_t add_particle(int shape, double scale, int material, const Vec3& position,
+                             const Quat& orientation = Quat::Identity(),
+                             const Vec3& velocity = Vec3::Zero(),
+                             const Vec3& angular_velocity = Vec3::Zero());
+  void remove_particle(std::size_t index) { particles_.swap_remove(index); }
+
+  void add_pre_step(Hook h) { pre_.push_back(std::move(h)); }
+  void add_force_stage(ForceStage f) { forces_.push_back(std::move(f)); }
+  void add_post_step(Hook h) { post_.push_back(std::move(h)); }
+
+  const StepStats& step();
+
+  // Pose and velocity of a kinematic body at time t, in closed form.
+  static void prescribed_state(const RigidBody& body, double t, Pose& pose, Vec3& v, Vec3& w);
+
+ private:
+  void set_body_motion(double t);
+  void build_solver_bodies();
+  void integrate(double h);
+  void remember_impulses();
+
+  std::shared_ptr<const Model> model_;
+  Particles particles_;
+  Bodies bodies_;
+  std::vector<JointFrame> joint_frames_;
+  double time_ = 0.0;
+  std::uint64_t next_id_ = 0;
+  std::vector<Hook> pre_, post_;
+  std::vector<ForceStage> forces_;
+
+  Collider collider_;
+  Contacts contacts_;
+  SolverBodies solver_bodies_;
+  CcpProblem problem_;
+  std::vector<BilateralRow> rows_;
+  Eigen::VectorXd gamma_;
+  // Warm start: last step's impulses, sorted by contact key.
+  std::vector<ContactKey> prev_keys_;
+  std::vector<Vec3> prev_impulse_;
+  Eigen::VectorXd prev_gamma_;
+  std::vector<Vec3> impulse_scratch_;
+  std::vector<std::size_t> order_scratch_;
+  StepStats stats_;
+};
+
+}  // namespace ces

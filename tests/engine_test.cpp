@@ -1,0 +1,390 @@
+// Engine checks against closed forms (issue 2). Each test states its tolerance.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <cmath>
+#include <cstring>
+#include <memory>
+
+#include "dynamics/world.hpp"
+
+namespace ces {
+namespace {
+
+constexpr double g0 = 9.81;
+
+// A model with one material per entry of `frictions`, a unit sphere shape,
+// and the given solver settings.
+std::shared_ptr<Model> base_model(std::vector<double> frictions = {0.5}, double step = 1e-3) {
+  auto m = std::make_shared<Model>();
+  m->step = step;
+  std::vector<Material> mats;
+  for (std::size_t i = 0; i < frictions.size(); ++i)
+    mats.push_back({"m" + std::to_string(i), 2500.0, frictions[i], 0.0});
+  m->materials = MaterialTable(mats, {});
+  m->shapes.push_back(make_particle_shape({Vec3::Zero()}, {1.0}));
+  m->solver.max_iterations = 500;
+  m->solver.tolerance = 1e-10;
+  return m;
+}
+
+RigidBody ground_plane(const Vec3& normal = Vec3::UnitY(), int material = 0) {
+  RigidBody b;
+  b.name = "ground";
+  b.shape = geo::Plane{normal.normalized(), 0.0};
+  b.material = material;
+  return b;
+}
+
+// ---------------------------------------------------------------- free flight
+
+// Semi-implicit Euler: v_n = v0 + n h g, x_n = x0 + n h v0 + h^2 g n(n+1)/2.
+// Tolerance: 1e-12 relative (rounding only).
+TEST(Engine, FreeFallAndProjectileMatchDiscreteSolution) {
+  auto m = base_model();
+  World w(m);
+  const Vec3 x0(0.1, 2.0, -0.3), v0(3.0, 4.0, 0.5);
+  w.add_particle(0, 0.01, 0, x0, Quat::Identity(), v0);
+  const int n = 1000;
+  for (int i = 0; i < n; ++i) w.step();
+  const double h = m->step;
+  const Vec3 v = v0 + n * h * m->gravity;
+  const Vec3 x = x0 + n * h * v0 + h * h * m->gravity * (n * (n + 1) / 2.0);
+  EXPECT_LT((w.particles().velocity[0] - v).norm(), 1e-12 * v.norm());
+  EXPECT_LT((w.particles().position[0] - x).norm(), 1e-12 * x.norm());
+}
+
+// ---------------------------------------------------------------- resting
+
+// 10,000 steps of 1 ms: drift below 1e-6 m, penetration below 1 % of r.
+TEST(Engine, SphereRestsOnPlaneWithoutDrift) {
+  auto m = base_model();
+  m->bodies.push_back(ground_plane());
+  World w(m);
+  const double r = 0.005;
+  const Vec3 x0(0, r, 0);
+  w.add_particle(0, r, 0, x0);
+  double worst_pen = 0.0;
+  for (int i = 0; i < 10000; ++i) worst_pen = std::max(worst_pen, w.step().max_penetration);
+  EXPECT_LT((w.particles().position[0] - x0).norm(), 1e-6);
+  EXPECT_LT(worst_pen, 0.01 * r);
+}
+
+// ---------------------------------------------------------------- friction
+
+// Four equal spheres in a square, as one rigid raft, on a plane tilted by
+// theta about z. Sticks for tan(theta) <= mu - 0.02 (displacement < 1e-6 m
+// in 1 s); slides with a = g (sin - mu cos) within 2 % for tan >= mu + 0.02.
+double raft_acceleration(double theta, double mu, double* displacement) {
+  auto m = base_model({mu});
+  const Vec3 n(-std::sin(theta), std::cos(theta), 0.0);
+  m->bodies.push_back(ground_plane(n));
+  const double r = 0.005;
+  m->shapes.push_back(make_particle_shape(
+      {Vec3(-1, 0, -1), Vec3(1, 0, -1), Vec3(-1, 0, 1), Vec3(1, 0, 1)}, {1, 1, 1, 1}));
+  World w(m);
+  // Raft lying flat on the incline: its local y along the incline normal.
+  // The principal frame of the square has its flat axes first; orient so the
+  // sphere centres are at height r above the plane.
+  const Quat tilt(Eigen::AngleAxisd(theta, Vec3::UnitZ()));
+  const ParticleShape& s = m->shapes[1];
+  // Find the principal axis normal to the raft (largest moment).
+  Eigen::Index normal_axis;
+  s.unit_inertia.maxCoeff(&normal_axis);
+  const Quat align = Quat::FromTwoVectors(Vec3::Unit(normal_axis), Vec3::UnitY());
+  w.add_particle(1, r, 0, n * r, tilt * align);
+  const Vec3 down_slope(-std::cos(theta), -std::sin(theta), 0.0);
+  double v1 = 0.0, v2 = 0.0;
+  const int steps = 1000;
+  for (int i = 1; i <= steps; ++i) {
+    w.step();
+    if (i == 200) v1 = w.particles().velocity[0].dot(down_slope);
+    if (i == steps) v2 = w.particles().velocity[0].dot(down_slope);
+  }
+  if (displacement) *displacement = (w.particles().position[0] - n * r).norm();
+  return (v2 - v1) / (0.8);
+}
+
+TEST(Engine, RaftOnInclineSticksBelowFrictionAngle) {
+  const double mu = 0.5;
+  double displacement = 0.0;
+  raft_acceleration(std::atan(mu - 0.02), mu, &displacement);
+  EXPECT_LT(displacement, 1e-6);
+}
+
+TEST(Engine, RaftOnInclineSlidesWithCoulombAcceleration) {
+  const double mu = 0.5;
+  for (double tan_theta : {mu + 0.02, 0.8, 1.2}) {
+    const double theta = std::atan(tan_theta);
+    const double expected = g0 * (std::sin(theta) - mu * std::cos(theta));
+    const double a = raft_acceleration(theta, mu, nullptr);
+    EXPECT_NEAR(a, expected, 0.02 * expected) << "tan theta " << tan_theta;
+  }
+}
+
+// A sphere launched sliding without spin ends rolling at 5/7 of its speed
+// (angular momentum about the contact point is conserved). Tolerance 1 %.
+TEST(Engine, SlidingSphereEndsRollingAtFiveSevenths) {
+  auto m = base_model({0.3});
+  m->bodies.push_back(ground_plane());
+  World w(m);
+  const double r = 0.01, v0 = 1.0;
+  w.add_particle(0, r, 0, Vec3(0, r, 0), Quat::Identity(), Vec3(v0, 0, 0));
+  for (int i = 0; i < 500; ++i) w.step();  // slip ends at 2 v0 / (7 mu g) = 0.097 s
+  const Particles& p = w.particles();
+  EXPECT_NEAR(p.velocity[0].x(), 5.0 / 7.0 * v0, 0.01 * 5.0 / 7.0 * v0);
+  EXPECT_NEAR(-p.angular_velocity[0].z() * r, p.velocity[0].x(), 1e-3 * v0);  // rolling
+}
+
+// ---------------------------------------------------------------- curved surface
+
+// A frictionless sphere from the top of a fixed horizontal cylinder leaves
+// it where cos(theta) = 2/3 + v0^2 / (3 g (R + r)). Tolerance 0.5 degree.
+double release_angle(double v0) {
+  auto m = base_model({0.0}, 1e-4);
+  RigidBody drum;
+  drum.shape = geo::Cylinder{0.1, 0.2, 0.0};
+  m->bodies.push_back(drum);
+  World w(m);
+  const double R = 0.1, r = 0.005;
+  w.add_particle(0, r, 0, Vec3(0, R + r, 0), Quat::Identity(), Vec3(v0, 0, 0));
+  for (int i = 0; i < 200000; ++i) {
+    w.step();
+    const Vec3& x = w.particles().position[0];
+    const double theta = std::atan2(x.x(), x.y());
+    // Detached once the contact carries no load.
+    double load = 0.0;
+    for (std::size_t k = 0; k < w.contacts().size(); ++k) load += w.impulses()[std::ptrdiff_t(3 * k)];
+    if (theta > 0.1 && load <= 0.0) return theta;
+  }
+  return -1.0;
+}
+
+TEST(Engine, FrictionlessSphereLeavesCylinderAtClosedFormAngle) {
+  const double R = 0.1, r = 0.005;
+  for (double v0 : {0.01, 0.3}) {
+    const double expected = std::acos(2.0 / 3.0 + v0 * v0 / (3 * g0 * (R + r)));
+    EXPECT_NEAR(release_angle(v0), expected, 0.5 * kPi / 180.0) << "v0 " << v0;
+  }
+}
+
+// ---------------------------------------------------------------- impacts
+
+// Head-on impact of unequal spheres, no gravity. Momentum to 1e-12
+// relative; post-impact velocities within 1e-9 m/s of the textbook values.
+void head_on(double e) {
+  auto m = base_model({0.0});
+  m->gravity.setZero();
+  m->materials = MaterialTable({{"m", 1000.0, 0.0, e}}, {});
+  m->contact.restitution_threshold = 1e-6;
+  World w(m);
+  const double r = 0.01;
+  w.add_particle(0, r, 0, Vec3(0, 0, 0), Quat::Identity(), Vec3(1.0, 0, 0));
+  w.add_particle(0, 2 * r, 0, Vec3(3.0005 * r, 0, 0), Quat::Identity(), Vec3(-0.5, 0, 0));
+  const Particles& p = w.particles();
+  const double m1 = p.mass[0], m2 = p.mass[1], u1 = 1.0, u2 = -0.5;
+  const double momentum = m1 * u1 + m2 * u2;
+  for (int i = 0; i < 20; ++i) w.step();
+  const double v1 = p.velocity[0].x(), v2 = p.velocity[1].x();
+  EXPECT_NEAR(m1 * v1 + m2 * v2, momentum, 1e-12 * std::abs(m1 * u1) + 1e-12 * std::abs(m2 * u2));
+  const double cm = momentum / (m1 + m2);
+  EXPECT_NEAR(v1, cm - e * m2 * (u1 - u2) / (m1 + m2), 1e-9);
+  EXPECT_NEAR(v2, cm + e * m1 * (u1 - u2) / (m1 + m2), 1e-9);
+}
+
+TEST(Engine, HeadOnPlasticImpact) { head_on(0.0); }
+TEST(Engine, HeadOnElasticImpact) { head_on(1.0); }
+
+// ---------------------------------------------------------------- piles
+
+// Three spheres touching on the ground, a fourth on top (a regular
+// tetrahedron). Ground mu 0.5; between spheres the threshold is
+// tan(phi/2) = 0.318 with sin(phi) = 1/sqrt(3): mu 0.4 holds (apex drops
+// < 1 % of r in 1 s), mu 0.2 collapses (apex drops > 50 % of r).
+double apex_drop(double mu_spheres) {
+  auto m = base_model({0.5, 0.5});
+  m->materials = MaterialTable({{"ground", 2500, 0.5, 0}, {"sphere", 2500, 0.5, 0}},
+                               {{1, 1, mu_spheres, std::nullopt}});
+  m->bodies.push_back(ground_plane());
+  World w(m);
+  const double r = 0.005;
+  const double s = 2 * r / std::sqrt(3.0);  // circumradius of the base triangle
+  for (int k = 0; k < 3; ++k) {
+    const double a = 2 * kPi * k / 3;
+    w.add_particle(0, r, 1, Vec3(s * std::cos(a), r, s * std::sin(a)));
+  }
+  const double top = r + 2 * r * std::sqrt(2.0 / 3.0);
+  w.add_particle(0, r, 1, Vec3(0, top, 0));
+  for (int i = 0; i < 1000; ++i) w.step();
+  return top - w.particles().position[3].y();
+}
+
+TEST(Engine, TetrahedralPileHoldsWithEnoughFriction) { EXPECT_LT(apex_drop(0.4), 0.01 * 0.005); }
+TEST(Engine, TetrahedralPileCollapsesWithLittleFriction) { EXPECT_GT(apex_drop(0.2), 0.5 * 0.005); }
+
+// A sphere 1000 times heavier on a 5 x 5 layer of light spheres: penetration
+// stays below 5 % of the radius with 100 APGD iterations per step.
+TEST(Engine, HeavySphereOnLightLayerStaysOnTop) {
+  auto m = base_model({0.5, 0.5});
+  m->materials = MaterialTable({{"light", 1000, 0.5, 0}, {"heavy", 1e6, 0.5, 0}}, {});
+  m->bodies.push_back(ground_plane());
+  m->solver.max_iterations = 100;
+  m->solver.tolerance = 1e-8;
+  World w(m);
+  const double r = 0.005;
+  for (int i = -2; i <= 2; ++i)
+    for (int k = -2; k <= 2; ++k) w.add_particle(0, r, 0, Vec3(2 * r * i, r, 2 * r * k));
+  w.add_particle(0, r, 1, Vec3(r, r + std::sqrt(2.0) * r, r));  // in a pocket of four
+  double worst = 0.0;
+  for (int i = 0; i < 1000; ++i) worst = std::max(worst, w.step().max_penetration_relative);
+  EXPECT_LT(worst, 0.05);
+}
+
+// ---------------------------------------------------------------- joints
+
+// A drum on a revolute joint driven by a speed motor: turns at the commanded
+// speed (error < 1e-6 rad/s) with joint drift < 1e-6 m, under gravity.
+TEST(Engine, MotorDrivesDrumAtCommandedSpeed) {
+  auto m = base_model();
+  RigidBody drum;
+  drum.name = "drum";
+  drum.kind = BodyKind::Dynamic;
+  drum.shape = geo::Cylinder{0.16, 0.15, 0.0};
+  drum.mass = 50.0;
+  drum.inertia = Vec3(0.5 * 50 * 0.16 * 0.16, 0.5 * 50 * 0.16 * 0.16, 0.5 * 50 * 0.16 * 0.16);
+  drum.pose.position = Vec3(0.0, 0.3, 0.0);
+  m->bodies.push_back(drum);
+  m->joints.push_back({JointType::Revolute, -1, 0, Vec3(0.0, 0.3, 0.0), Vec3::UnitZ()});
+  const double speed = 44.8 * 2 * kPi / 60;
+  m->motors.push_back({0, Motor::Mode::Speed, speed});
+  World w(m);
+  double drift = 0.0;
+  for (int i = 0; i < 1000; ++i) drift = std::max(drift, w.step().joint_drift);
+  EXPECT_NEAR(w.bodies().angular_velocity[0].z(), speed, 1e-6);
+  EXPECT_LT(w.bodies().angular_velocity[0].head<2>().norm(), 1e-6);
+  EXPECT_LT(drift, 1e-6);
+  EXPECT_LT((w.bodies().pose[0].position - Vec3(0, 0.3, 0)).norm(), 1e-6);
+}
+
+// A prismatic joint with a position motor slides a plate to its target.
+TEST(Engine, PrismaticPositionMotorReachesTarget) {
+  auto m = base_model();
+  m->gravity.setZero();
+  RigidBody plate;
+  plate.kind = BodyKind::Dynamic;
+  plate.shape = geo::Box{Vec3(0.01, 0.05, 0.1)};
+  plate.mass = 1.0;
+  plate.inertia = Vec3(1e-3, 1e-3, 1e-3);
+  m->bodies.push_back(plate);
+  m->joints.push_back({JointType::Prismatic, -1, 0, Vec3::Zero(), Vec3::UnitX()});
+  m->motors.push_back({0, Motor::Mode::Position, 0.05, 0.1, 100.0});
+  World w(m);
+  for (int i = 0; i < 1000; ++i) w.step();  // 0.05 m at 0.1 m/s: 0.5 s
+  EXPECT_NEAR(w.bodies().pose[0].position.x(), 0.05, 1e-9);
+  EXPECT_LT(w.bodies().pose[0].position.tail<2>().norm(), 1e-9);
+}
+
+// ---------------------------------------------------------------- solvers
+
+// A 10-layer stack (3 x 3 spheres per layer) solved from rest without warm
+// start: APGD needs fewer iterations than projected Gauss-Seidel to reach the
+// same residual tolerance. Counts, not times.
+int stack_iterations(SolverMethod method) {
+  auto m = base_model({0.3});
+  m->bodies.push_back(ground_plane());
+  m->solver.method = method;
+  m->solver.max_iterations = 5000;
+  m->solver.tolerance = 1e-5;
+  m->solver.warm_start = false;
+  World w(m);
+  const double r = 0.005;
+  for (int layer = 0; layer < 10; ++layer)
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k)
+        w.add_particle(0, r, 0, Vec3(2 * r * i, r + 2 * r * layer, 2 * r * k));
+  const StepStats& s = w.step();
+  EXPECT_TRUE(s.solver.converged);
+  return s.solver.iterations;
+}
+
+TEST(Engine, ApgdBeatsGaussSeidelOnStack) {
+  const int apgd = stack_iterations(SolverMethod::APGD);
+  const int pgs = stack_iterations(SolverMethod::PGS);
+  const int spg = stack_iterations(SolverMethod::SPG);
+  RecordProperty("apgd", apgd);
+  RecordProperty("pgs", pgs);
+  RecordProperty("spg", spg);
+  EXPECT_LT(apgd, pgs);
+}
+
+// ---------------------------------------------------------------- determinism
+
+std::vector<double> pile_state(int threads) {
+  omp_set_num_threads(threads);
+  auto m = base_model({0.4});
+  m->solver.max_iterations = 50;
+  m->solver.tolerance = 1e-8;
+  m->bodies.push_back(ground_plane());
+  for (const Vec3& n : {Vec3(1, 0, 0), Vec3(-1, 0, 0), Vec3(0, 0, 1), Vec3(0, 0, -1)}) {
+    RigidBody wall = ground_plane(n);
+    wall.shape = geo::Plane{n, -0.03};
+    m->bodies.push_back(wall);
+  }
+  World w(m);
+  const double r = 0.002;
+  int count = 0;
+  for (int layer = 0; count < 500; ++layer)
+    for (int i = 0; i < 10 && count < 500; ++i)
+      for (int k = 0; k < 10 && count < 500; ++k, ++count)
+        w.add_particle(0, r * (1.0 + 0.1 * ((i + k + layer) % 3)), 0,
+                       Vec3(-0.025 + 0.0052 * i + 0.0003 * (layer % 2), r + 0.0055 * layer,
+                            -0.025 + 0.0052 * k));
+  for (int i = 0; i < 1000; ++i) w.step();
+  std::vector<double> state;
+  const Particles& p = w.particles();
+  for (std::size_t i = 0; i < p.size(); ++i)
+    for (const Vec3* v : {&p.position[i], &p.velocity[i], &p.angular_velocity[i]})
+      state.insert(state.end(), v->data(), v->data() + 3);
+  omp_set_num_threads(omp_get_num_procs());
+  return state;
+}
+
+TEST(Engine, PileIsBitwiseIdenticalAcrossRunsAndThreads) {
+  const auto a = pile_state(1), b = pile_state(1), c = pile_state(2);
+  ASSERT_EQ(a.size(), c.size());
+  EXPECT_EQ(0, std::memcmp(a.data(), b.data(), a.size() * sizeof(double)));
+  EXPECT_EQ(0, std::memcmp(a.data(), c.data(), a.size() * sizeof(double)));
+}
+
+// ---------------------------------------------------------------- mass properties
+
+// Union of two overlapping spheres (radius 1, centres 1 apart) against the
+// closed form: volume of the union = 2 V_sphere - V_lens. Tolerance 1e-4.
+TEST(Engine, OverlappingClusterMassPropertiesMatchClosedForm) {
+  const double r = 1.0, d = 1.0;
+  const ParticleShape s = make_particle_shape({Vec3(0, 0, 0), Vec3(d, 0, 0)}, {r, r});
+  const double lens = kPi * (4 * r + d) * (2 * r - d) * (2 * r - d) / 12.0;
+  const double volume = 2 * 4.0 / 3.0 * kPi - lens;
+  EXPECT_NEAR(s.volume, volume, 1e-4 * volume);
+  // Moment about the long axis (x): integral of (y^2 + z^2) over the union,
+  // by slices: each slice is a disc of radius a(x), moment pi a^4 / 2.
+  auto slice = [&](double x) {
+    const double a2 = std::max(r * r - x * x, r * r - (x - d) * (x - d));
+    return a2 > 0 ? kPi * a2 * a2 / 2.0 : 0.0;
+  };
+  double ixx = 0.0;
+  const int n = 200000;
+  for (int i = 0; i < n; ++i) {
+    const double x = -r + (d + 2 * r) * (i + 0.5) / n;
+    ixx += slice(x) * (d + 2 * r) / n;
+  }
+  // The long axis is the principal axis with the smallest moment.
+  EXPECT_NEAR(s.unit_inertia.minCoeff() * s.volume, ixx, 1e-4 * ixx);
+  // Separated spheres are exact: two unit spheres 3 apart.
+  const ParticleShape t = make_particle_shape({Vec3(0, 0, 0), Vec3(3, 0, 0)}, {1, 1});
+  EXPECT_NEAR(t.volume, 8.0 / 3.0 * kPi, 1e-12);
+  EXPECT_NEAR(t.unit_inertia.maxCoeff(), 0.4 + 1.5 * 1.5, 1e-12);
+}
+
+}  // namespace
+}  // namespace ces
