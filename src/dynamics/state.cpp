@@ -18,6 +18,7 @@ void Particles::push(std::uint64_t new_id, int shape_index, double size_scale,
   inv_inertia.push_back(inertia.cwiseInverse());
   force.push_back(Vec3::Zero());
   torque.push_back(Vec3::Zero());
+  charge.push_back(0.0);
 }
 
 namespace {
@@ -42,6 +43,7 @@ void Particles::swap_remove(std::size_t i) {
   swap_out(inv_inertia, i);
   swap_out(force, i);
   swap_out(torque, i);
+  swap_out(charge, i);
 }
 
 void Particles::reserve(std::size_t n) {
@@ -58,6 +60,7 @@ void Particles::reserve(std::size_t n) {
   inv_inertia.reserve(n);
   force.reserve(n);
   torque.reserve(n);
+  charge.reserve(n);
 }
 
 }  // namespace ces

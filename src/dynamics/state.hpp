@@ -23,6 +23,7 @@ struct Particles {
   std::vector<Vec3> inv_inertia;       // principal frame, 1 / I
   std::vector<Vec3> force;             // external, cleared every step
   std::vector<Vec3> torque;
+  std::vector<double> charge;          // C; stays 0 unless a scene has electrodes
 
   std::size_t size() const { return id.size(); }
   void push(std::uint64_t new_id, int shape_index, double size_scale, int material_index,
