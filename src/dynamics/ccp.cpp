@@ -224,13 +224,30 @@ void CcpProblem::project(VectorXd& x) const {
 }
 
 void CcpProblem::residual(const VectorXd& x, const VectorXd& g, double& rms, double& max) const {
+  // One fused pass over the blocks, no temporaries: this runs every iteration.
   const double s = 1.0 / diag_max_;
-  VectorXd p = x - s * g;
-  project(p);
-  const VectorXd r = (x - p) / s;
-  const auto m = r.size();
-  rms = m > 0 ? r.norm() / std::sqrt(double(m)) : 0.0;
-  max = m > 0 ? r.cwiseAbs().maxCoeff() : 0.0;
+  const auto nc = std::ptrdiff_t(a_.size());
+  double sum = 0.0, largest = 0.0;
+  auto add = [&](double xi, double pi) {
+    const double r = (xi - pi) / s;
+    sum += r * r;
+    largest = std::max(largest, std::abs(r));
+  };
+  for (std::ptrdiff_t k = 0; k < nc; ++k) {
+    double pn = x[3 * k] - s * g[3 * k], p1 = x[3 * k + 1] - s * g[3 * k + 1],
+           p2 = x[3 * k + 2] - s * g[3 * k + 2];
+    project_cone(mu_[std::size_t(k)], pn, p1, p2);
+    add(x[3 * k], pn);
+    add(x[3 * k + 1], p1);
+    add(x[3 * k + 2], p2);
+  }
+  for (std::size_t j = 0; j < rows_.size(); ++j) {
+    const double xi = x[3 * nc + std::ptrdiff_t(j)];
+    add(xi, std::clamp(xi - s * g[3 * nc + std::ptrdiff_t(j)], rows_[j].lo, rows_[j].hi));
+  }
+  const auto m = x.size();
+  rms = m > 0 ? std::sqrt(sum / double(m)) : 0.0;
+  max = largest;
 }
 
 void CcpProblem::world_impulses(const VectorXd& x, std::vector<Vec3>& out) const {

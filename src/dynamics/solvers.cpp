@@ -11,7 +11,7 @@ namespace {
 
 // f(x) = 1/2 x^T N x + r^T x = 1/2 x^T (g + r) with g = N x + r; r = g(0).
 double objective(const VectorXd& x, const VectorXd& g, const VectorXd& r) {
-  return 0.5 * x.dot(g + r);
+  return 0.5 * (x.dot(g) + x.dot(r));
 }
 
 struct Best {
@@ -36,7 +36,7 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, VectorXd& x)
   const auto m = std::ptrdiff_t(p.row_count());
   Best best;
   if (m == 0) return {0, 0.0, 0.0, true};
-  VectorXd r, g, gx, y = x, x1, y1;
+  VectorXd r, g, gx, y = x, x1, y1, d;
   p.gradient(VectorXd::Zero(m), r);
   // Initial Lipschitz estimate from a secant through a perturbed point.
   VectorXd probe = x;
@@ -53,7 +53,7 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, VectorXd& x)
       x1 = y - g / L;
       p.project(x1);
       p.gradient(x1, gx);
-      const VectorXd d = x1 - y;
+      d = x1 - y;
       if (objective(x1, gx, r) <= fy + g.dot(d) + 0.5 * L * d.squaredNorm() + 1e-15 * std::abs(fy) ||
           L > 1e3 * p.diagonal_max() * double(m))
         break;
@@ -69,7 +69,7 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, VectorXd& x)
     }
     const double theta1 = 0.5 * (-theta * theta + theta * std::sqrt(theta * theta + 4.0));
     const double beta = theta * (1.0 - theta) / (theta * theta + theta1);
-    y1 = x1 + beta * (x1 - x);
+    y1 = (1.0 + beta) * x1 - beta * x;
     if (g.dot(x1 - x) > 0.0) {  // restart: momentum points uphill
       y1 = x1;
       theta = 1.0;
