@@ -284,6 +284,97 @@ TEST(Engine, PrismaticPositionMotorReachesTarget) {
   EXPECT_LT(w.bodies().pose[0].position.tail<2>().norm(), 1e-9);
 }
 
+// A fixed joint holds a heavy plate to the ground against gravity: drift
+// below 1e-6 m and rotation below 1e-6 rad after 1 s.
+TEST(Engine, FixedJointHoldsBodyAgainstGravity) {
+  auto m = base_model();
+  RigidBody plate;
+  plate.kind = BodyKind::Dynamic;
+  plate.shape = geo::Box{Vec3(0.1, 0.01, 0.1)};
+  plate.mass = 5.0;
+  plate.inertia = Vec3(0.02, 0.03, 0.02);
+  plate.pose.position = Vec3(0.2, 0.5, 0.0);
+  m->bodies.push_back(plate);
+  // Anchor off the centre of mass, so gravity also makes a torque.
+  m->joints.push_back({JointType::Fixed, -1, 0, Vec3(0.0, 0.5, 0.0), Vec3::UnitZ()});
+  World w(m);
+  double drift = 0.0;
+  for (int i = 0; i < 1000; ++i) drift = std::max(drift, w.step().joint_drift);
+  EXPECT_LT(drift, 1e-6);
+  EXPECT_LT((w.bodies().pose[0].position - Vec3(0.2, 0.5, 0.0)).norm(), 1e-6);
+  EXPECT_LT(w.bodies().pose[0].orientation.angularDistance(Quat::Identity()), 1e-6);
+}
+
+// ---------------------------------------------------------------- machine surfaces
+
+// A sphere rests on a box, on a triangulated mesh floor, and inside a hollow
+// drum shell at the bottom: drift below 1e-6 m over 2 s, penetration below
+// 1 % of the radius. The mesh floor's shared edges and vertices must not
+// create extra contacts (exactly one contact while resting on a vertex).
+double rest_on(const geo::Shape& shape, const Vec3& start, std::size_t* contacts) {
+  auto m = base_model();
+  RigidBody floor;
+  floor.shape = shape;
+  m->bodies.push_back(floor);
+  World w(m);
+  w.add_particle(0, 0.005, 0, start);
+  double pen = 0.0;
+  for (int i = 0; i < 2000; ++i) pen = std::max(pen, w.step().max_penetration);
+  if (contacts) *contacts = w.contacts().size();
+  EXPECT_LT(pen, 0.01 * 0.005);
+  return (w.particles().position[0] - start).norm();
+}
+
+TEST(Engine, SphereRestsOnBoxMeshAndShell) {
+  const double r = 0.005;
+  EXPECT_LT(rest_on(geo::Box{Vec3(0.1, 0.02, 0.1)}, Vec3(0.01, 0.02 + r, 0.0), nullptr), 1e-6);
+  // Mesh floor: 4 x 4 squares of two triangles each, at y = 0.
+  std::vector<Vec3> v;
+  std::vector<std::array<std::uint32_t, 3>> t;
+  for (int i = 0; i <= 4; ++i)
+    for (int k = 0; k <= 4; ++k) v.emplace_back(-0.1 + 0.05 * i, 0.0, -0.1 + 0.05 * k);
+  for (std::uint32_t i = 0; i < 4; ++i)
+    for (std::uint32_t k = 0; k < 4; ++k) {
+      const std::uint32_t a = i * 5 + k, b = a + 5;
+      t.push_back({a, a + 1, b});
+      t.push_back({b, a + 1, b + 1});
+    }
+  auto mesh = std::make_shared<const geo::TriMesh>(v, t);
+  std::size_t contacts = 0;
+  EXPECT_LT(rest_on(mesh, Vec3(0.0, r, 0.0), &contacts), 1e-6);  // on a shared vertex
+  EXPECT_EQ(contacts, 1u);
+  // Inside a drum shell (R 0.16 m, wall 5 mm) resting at the bottom.
+  EXPECT_LT(rest_on(geo::Cylinder{0.16, 0.15, 0.005}, Vec3(0.0, -0.155 + r, 0.0), nullptr), 1e-6);
+}
+
+// A frictionless sphere slides across a triangulated floor at constant speed:
+// the shared edges are not bumps (speed kept within 1e-9 m/s, height within
+// 1e-6 m).
+TEST(Engine, SphereSlidesAcrossMeshEdgesWithoutBumps) {
+  auto m = base_model({0.0});
+  std::vector<Vec3> v;
+  std::vector<std::array<std::uint32_t, 3>> t;
+  for (int i = 0; i <= 10; ++i)
+    for (int k = 0; k <= 2; ++k) v.emplace_back(-0.05 + 0.02 * i, 0.0, -0.02 + 0.02 * k);
+  for (std::uint32_t i = 0; i < 10; ++i)
+    for (std::uint32_t k = 0; k < 2; ++k) {
+      const std::uint32_t a = i * 3 + k, b = a + 3;
+      t.push_back({a, a + 1, b});
+      t.push_back({b, a + 1, b + 1});
+    }
+  RigidBody floor;
+  floor.shape = std::make_shared<const geo::TriMesh>(v, t);
+  m->bodies.push_back(floor);
+  World w(m);
+  const double r = 0.002;
+  w.add_particle(0, r, 0, Vec3(-0.04, r, 0.0013), Quat::Identity(), Vec3(0.5, 0, 0.02));
+  for (int i = 0; i < 300; ++i) {
+    w.step();
+    EXPECT_NEAR(w.particles().velocity[0].head<1>()(0), 0.5, 1e-9);
+    EXPECT_NEAR(w.particles().position[0].y(), r, 1e-6);
+  }
+}
+
 // ---------------------------------------------------------------- solvers
 
 // A 10-layer stack (3 x 3 spheres per layer) solved from rest without warm
