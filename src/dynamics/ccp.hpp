@@ -84,8 +84,9 @@ class CcpProblem {
   SolveStats solve_pgs(VectorXd& x, const SolverSettings& s) const;
 
  private:
-  void scatter(const VectorXd& x, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
-  void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, VectorXd& y) const;
+  // dv = M^-1 J^T x (+ v_free); y = J v (+ b).
+  void scatter(const VectorXd& x, bool add_free, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
+  void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, VectorXd& y) const;
   void build_adjacency(std::size_t body_count);
 
   const SolverBodies* bodies_ = nullptr;
@@ -99,6 +100,7 @@ class CcpProblem {
   std::vector<std::uint32_t> adj_offset_, adj_entry_;
   double diag_max_ = 1.0;
   mutable std::vector<Vec3> dv_, dw_, impulse_;
+  mutable std::vector<double> partial_sum_, partial_max_;
 };
 
 SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, VectorXd& x);
