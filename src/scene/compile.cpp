@@ -1,0 +1,826 @@
+#include "scene/compile.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "scene/diagnostics.hpp"
+
+namespace ces::scene {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+Vec3 vec3(const Node& n) { return {n.items[0].number(), n.items[1].number(), n.items[2].number()}; }
+
+std::string format(double x) {
+  std::ostringstream s;
+  s << x;
+  return s.str();
+}
+
+std::string metres(double x) { return format(x) + " m"; }
+
+// Names declared by one section, for duplicate checks and references.
+class NameTable {
+ public:
+  explicit NameTable(std::string what) : what_(std::move(what)) {}
+
+  // False, with a diagnostic, when the name was declared before.
+  bool declare(const std::string& name, const Mark& mark, const std::string& path, int index,
+               Diagnostics& diags) {
+    const auto [it, inserted] = table_.emplace(name, Declared{index, mark.line});
+    if (!inserted)
+      diags.error(mark, path,
+                  "duplicate " + what_ + " name '" + name + "', first given at line " +
+                      std::to_string(it->second.line));
+    return inserted;
+  }
+
+  std::optional<int> find(const std::string& name) const {
+    const auto it = table_.find(name);
+    return it == table_.end() ? std::nullopt : std::optional<int>(it->second.index);
+  }
+
+  // `extra` names that are valid references without being declared ("ground").
+  std::optional<int> resolve(const Node& ref, Diagnostics& diags,
+                             const std::vector<std::string>& extra = {}) const {
+    if (auto index = find(ref.string())) return index;
+    std::vector<std::string> names = extra;
+    for (const auto& [name, declared] : table_) names.push_back(name);
+    std::string message = "unknown " + what_ + " '" + ref.string() + "'";
+    const std::string guess = did_you_mean(ref.string(), names);
+    if (!guess.empty())
+      message += guess;
+    else if (names.empty())
+      message += ", and the scene defines none";
+    else
+      message += ", expected " + one_of(names);
+    diags.error(ref, message);
+    return std::nullopt;
+  }
+
+ private:
+  struct Declared {
+    int index;
+    int line;
+  };
+  std::string what_;
+  std::map<std::string, Declared> table_;
+};
+
+// Mass and inertia per unit density of the closed-form solids.
+struct SolidProperties {
+  double volume = 0.0;
+  Vec3 unit_inertia = Vec3::Zero();  // principal inertia / mass
+};
+
+std::optional<SolidProperties> solid_properties(const geo::Shape& shape) {
+  if (const auto* b = std::get_if<geo::Box>(&shape)) {
+    const Vec3 s = 2.0 * b->half_extents;
+    const Vec3 sq = s.cwiseProduct(s);
+    return SolidProperties{s.prod(),
+                           Vec3(sq.y() + sq.z(), sq.x() + sq.z(), sq.x() + sq.y()) / 12.0};
+  }
+  if (const auto* c = std::get_if<geo::Cylinder>(&shape)) {
+    const double r2 = c->radius * c->radius;
+    const double inner = c->thickness > 0.0 ? c->radius - c->thickness : 0.0;
+    const double i2 = inner * inner;
+    const double length = 2.0 * c->half_length;
+    const double across = (3.0 * (r2 + i2) + length * length) / 12.0;
+    return SolidProperties{kPi * (r2 - i2) * length, Vec3(across, across, 0.5 * (r2 + i2))};
+  }
+  return std::nullopt;  // planes and open meshes have no volume
+}
+
+class Compiler {
+ public:
+  Compiler(const Node& root, const std::string& scene_path, Diagnostics& diags)
+      : root_(root),
+        scene_dir_(fs::path(scene_path).parent_path()),
+        diags_(diags),
+        model_(std::make_shared<Model>()) {
+    sim_.scene_path = scene_path;
+  }
+
+  Simulation build() {
+    read_settings();
+    read_materials();
+    read_bodies();
+    read_joints();
+    read_motors();
+    read_domain();
+    read_feeds();
+    read_collectors();
+    read_output();
+    list_components();
+    sim_.model = model_;
+    return std::move(sim_);
+  }
+
+ private:
+  // ---------------------------------------------------------------- settings
+
+  void read_settings() {
+    sim_.name = root_.at("name").string();
+    sim_.seed = root_.at("seed").scalar.get<std::uint64_t>();
+    const Node& time = root_.at("time");
+    model_->step = time.at("step").number();
+    sim_.end_time = time.at("end").number();
+    if (model_->step > sim_.end_time)
+      diags_.error(time.at("step"), "step " + format(model_->step) +
+                                        " s is longer than the run (end " + format(sim_.end_time) +
+                                        " s), expected step <= end");
+    read_solver(root_.at("solver"));
+    const Node& contact = root_.at("contact");
+    model_->contact.envelope_fraction = contact.at("envelope").number();
+    model_->contact.recovery_speed = contact.at("recovery_speed").number();
+    model_->contact.restitution_threshold = contact.at("restitution_threshold").number();
+    const Node* gravity = root_.find("gravity");
+    model_->gravity = gravity ? vec3(*gravity) : Vec3::Zero();
+  }
+
+  void read_solver(const Node& s) {
+    const std::string& method = s.at("method").string();
+    model_->solver.method = method == "apgd"  ? SolverMethod::APGD
+                            : method == "spg" ? SolverMethod::SPG
+                                              : SolverMethod::PGS;
+    model_->solver.max_iterations = s.at("max_iterations").scalar.get<int>();
+    model_->solver.tolerance = s.at("tolerance").number();
+    model_->solver.pgs_relaxation = s.at("relaxation").number();
+    model_->solver.warm_start = s.at("warm_start").boolean();
+  }
+
+  // A unit vector, or nullopt (reported) for a zero vector.
+  std::optional<Vec3> direction(const Node& n) {
+    const Vec3 v = vec3(n);
+    if (!(v.norm() > 0.0) || !v.allFinite()) {
+      diags_.error(n, "got a zero vector, expected a direction");
+      return std::nullopt;
+    }
+    return v.normalized();
+  }
+
+  // ---------------------------------------------------------------- materials
+
+  void read_materials() {
+    std::vector<Material> list;
+    if (const Node* materials = root_.find("materials")) {
+      for (const Entry& e : materials->entries) {
+        const Node& m = e.value;
+        materials_.declare(e.key, e.key_mark, m.path, int(list.size()), diags_);
+        const Node* density = m.find("density");
+        has_density_.push_back(density != nullptr);
+        list.push_back({e.key, density ? density->number() : 0.0, m.at("friction").number(),
+                        m.at("restitution").number()});
+      }
+    }
+    model_->materials = MaterialTable(std::move(list), read_pairs());
+  }
+
+  std::vector<MaterialPair> read_pairs() {
+    std::vector<MaterialPair> pairs;
+    const Node* list = root_.find("material_pairs");
+    if (!list) return pairs;
+    std::map<std::pair<int, int>, int> seen;  // -> line
+    for (const Node& p : list->items) {
+      const auto a = materials_.resolve(p.at("materials").items[0], diags_);
+      const auto b = materials_.resolve(p.at("materials").items[1], diags_);
+      if (!a || !b) continue;
+      const auto [it, inserted] = seen.emplace(std::minmax(*a, *b), p.mark.line);
+      if (!inserted) {
+        diags_.error(p.at("materials"), "this pair was given already at line " +
+                                            std::to_string(it->second) +
+                                            ", expected each pair once");
+        continue;
+      }
+      MaterialPair pair{*a, *b, std::nullopt, std::nullopt};
+      if (const Node* f = p.find("friction")) pair.friction = f->number();
+      if (const Node* r = p.find("restitution")) pair.restitution = r->number();
+      pairs.push_back(pair);
+    }
+    return pairs;
+  }
+
+  // A material reference whose density the caller needs (`who` needs it).
+  std::optional<int> dense_material(const Node& ref, const std::string& who) {
+    const auto index = materials_.resolve(ref, diags_);
+    if (index && !has_density_[std::size_t(*index)]) {
+      diags_.error(ref, "material '" + ref.string() + "' has no density, which " + who +
+                            " needs, expected a density in materials." + ref.string());
+      return std::nullopt;
+    }
+    return index;
+  }
+
+  // ---------------------------------------------------------------- bodies
+
+  void read_bodies() {
+    const Node* list = root_.find("bodies");
+    if (!list) return;
+    for (const Node& b : list->items) {
+      RigidBody body;
+      body.name = b.at("name").string();
+      if (body.name == "ground")
+        diags_.error(b.at("name"),
+                     "'ground' names the fixed world in joints, expected another name");
+      bodies_.declare(body.name, b.at("name").mark, b.at("name").path, int(model_->bodies.size()),
+                      diags_);
+      body.material = materials_.resolve(b.at("material"), diags_).value_or(0);
+      const auto shape = geometry(b.at("geometry"));
+      if (shape) body.shape = *shape;
+      body.pose = pose(b.at("pose"));
+      read_motion(b, body, shape.has_value());
+      model_->bodies.push_back(std::move(body));
+    }
+  }
+
+  std::optional<geo::Shape> geometry(const Node& g) {
+    const Entry& e = g.entries.front();  // the schema allows exactly one
+    const Node& s = e.value;
+    if (e.key == "plane") {
+      const auto normal = direction(s.at("normal"));
+      if (!normal) return std::nullopt;
+      return geo::Plane{*normal, normal->dot(vec3(s.at("point")))};
+    }
+    if (e.key == "box") return geo::Box{0.5 * vec3(s.at("size"))};
+    if (e.key == "cylinder") return cylinder(s);
+    return mesh(s);
+  }
+
+  std::optional<geo::Shape> cylinder(const Node& s) {
+    const geo::Cylinder c{s.at("radius").number(), 0.5 * s.at("length").number(),
+                          s.at("thickness").number()};
+    if (c.thickness >= c.radius) {
+      diags_.error(s.at("thickness"), "a wall of " + metres(c.thickness) + " fills the radius (" +
+                                          metres(c.radius) +
+                                          "), expected less, or 0 for a solid cylinder");
+      return std::nullopt;
+    }
+    return c;
+  }
+
+  std::optional<geo::Shape> mesh(const Node& s) {
+    const Node& file = s.at("file");
+    const fs::path path = scene_dir_ / file.string();
+    try {
+      return geo::load_mesh(path.string(), s.at("scale").number());
+    } catch (const std::exception& e) {
+      diags_.error(file, std::string("cannot load mesh ") + e.what());
+      return std::nullopt;
+    }
+  }
+
+  Pose pose(const Node& p) {
+    Pose pose;
+    pose.position = vec3(p.at("position"));
+    const Node* axis = p.find("axis");
+    const Node* rotation = p.find("rotation");
+    if (axis && rotation) {
+      diags_.error(*axis, "both axis and rotation given, expected one of them");
+    } else if (axis) {
+      if (const auto a = direction(*axis)) pose.orientation = rotation_from_z(*a);
+    } else if (rotation) {
+      if (const auto a = direction(rotation->at("axis")))
+        pose.orientation = Quat(Eigen::AngleAxisd(rotation->at("angle").number(), *a));
+    }
+    return pose;
+  }
+
+  // `has_shape`: the geometry compiled, so mass can be taken from it.
+  void read_motion(const Node& b, RigidBody& body, bool has_shape) {
+    const Node* motion = b.find("motion");
+    const Node* dynamic = b.find("dynamic");
+    if (motion && dynamic) {
+      diags_.error(*dynamic,
+                   "a body with a prescribed motion cannot be dynamic, expected motion or dynamic");
+      return;
+    }
+    if (motion) {
+      body.kind = BodyKind::Kinematic;
+      if (const Node* rotation = motion->find("rotation")) {
+        body.motion.axis = direction(rotation->at("axis")).value_or(Vec3::UnitZ());
+        body.motion.center = vec3(rotation->at("center"));
+        body.motion.angular_speed = rotation->at("speed").number();
+      }
+      if (const Node* v = motion->find("velocity")) body.motion.linear_velocity = vec3(*v);
+    } else if (dynamic) {
+      body.kind = BodyKind::Dynamic;
+      body.velocity = vec3(dynamic->at("velocity"));
+      body.angular_velocity = vec3(dynamic->at("angular_velocity"));
+      if (has_shape) mass_properties(b, *dynamic, body);
+    }
+  }
+
+  // Given mass and inertia, or from the solid's volume and a density.
+  void mass_properties(const Node& b, const Node& d, RigidBody& body) {
+    const Node* mass = d.find("mass");
+    const Node* inertia = d.find("inertia");
+    if (inertia && !mass) return diags_.error(*inertia, "inertia without a mass, expected both");
+    if (mass && inertia) {
+      body.mass = mass->number();
+      body.inertia = vec3(*inertia);
+      return;
+    }
+    const auto solid = solid_properties(body.shape);
+    const std::string& kind = b.at("geometry").entries.front().key;
+    if (!solid)
+      return diags_.error(
+          d, "a " + kind + " has no volume to take a mass from, expected mass and inertia");
+    if (mass) {
+      body.mass = mass->number();
+    } else if (const Node* density = d.find("density")) {
+      body.mass = density->number() * solid->volume;
+    } else if (const auto m =
+                   dense_material(b.at("material"), "dynamic body '" + body.name + "'")) {
+      body.mass = model_->materials.materials()[std::size_t(*m)].density * solid->volume;
+    }
+    body.inertia = body.mass * solid->unit_inertia;
+  }
+
+  // ---------------------------------------------------------------- joints
+
+  void read_joints() {
+    const Node* list = root_.find("joints");
+    if (!list) return;
+    for (const Node& j : list->items) {
+      joints_.declare(j.at("name").string(), j.at("name").mark, j.at("name").path,
+                      int(model_->joints.size()), diags_);
+      Joint joint;
+      const std::string& type = j.at("type").string();
+      joint.type = type == "revolute"    ? JointType::Revolute
+                   : type == "prismatic" ? JointType::Prismatic
+                                         : JointType::Fixed;
+      joint.point = vec3(j.at("point"));
+      joint.axis = direction(j.at("axis")).value_or(Vec3::UnitZ());
+      const auto a = body_ref(j.at("body_a"));
+      const auto b = body_ref(j.at("body_b"));
+      if (a && b) check_joint_bodies(j, *a, *b);
+      joint.body_a = a.value_or(-1);
+      joint.body_b = b.value_or(-1);
+      model_->joints.push_back(joint);
+    }
+  }
+
+  std::optional<int> body_ref(const Node& ref) {
+    if (ref.string() == "ground") return -1;
+    return bodies_.resolve(ref, diags_, {"ground"});
+  }
+
+  bool is_dynamic(int body) const {
+    return body >= 0 && model_->bodies[std::size_t(body)].kind == BodyKind::Dynamic;
+  }
+
+  void check_joint_bodies(const Node& j, int a, int b) {
+    if (a == b)
+      diags_.error(j.at("body_b"),
+                   "joins '" + j.at("body_a").string() + "' to itself, expected two bodies");
+    else if (!is_dynamic(a) && !is_dynamic(b))
+      diags_.error(j.at("body_b"),
+                   "neither body is dynamic, so the joint could not move anything; expected a "
+                   "dynamic body (give it 'dynamic:')");
+  }
+
+  // ---------------------------------------------------------------- motors
+
+  void read_motors() {
+    const Node* list = root_.find("motors");
+    if (!list) return;
+    for (const Node& m : list->items) {
+      const auto index = joints_.resolve(m.at("joint"), diags_);
+      if (!index) continue;
+      const Joint& joint = model_->joints[std::size_t(*index)];
+      if (joint.type == JointType::Fixed) {
+        diags_.error(m.at("joint"), "joint '" + m.at("joint").string() +
+                                        "' is fixed, expected a revolute or prismatic joint");
+        continue;
+      }
+      if (auto motor = read_motor(m, joint.type == JointType::Revolute)) {
+        motor->joint = *index;
+        model_->motors.push_back(*motor);
+      }
+    }
+  }
+
+  std::optional<Motor> read_motor(const Node& m, bool revolute) {
+    const Node* speed = m.find("speed");
+    const Node* position = m.find("position");
+    const Node* max_speed = m.find("max_speed");
+    const Node* max_force = m.find("max_force");
+    bool ok = true;
+    if (!speed == !position) {
+      diags_.error(m, speed ? "both speed and position given, expected one of them"
+                            : "neither speed nor position given, expected one of them");
+      return std::nullopt;
+    }
+    if (speed) ok &= check_kind(*speed, revolute ? "angular_speed" : "speed", revolute);
+    if (max_force) ok &= check_kind(*max_force, revolute ? "torque" : "force", revolute);
+    if (position && revolute) {
+      diags_.error(*position,
+                   "position motors drive prismatic joints, expected a speed for a revolute joint");
+      ok = false;
+    }
+    if (max_speed && !position) {
+      diags_.error(*max_speed, "max_speed limits position motors, expected it only with position");
+      ok = false;
+    }
+    if (!ok) return std::nullopt;
+    Motor motor;
+    motor.mode = speed ? Motor::Mode::Speed : Motor::Mode::Position;
+    motor.target = (speed ? speed : position)->number();
+    if (max_speed) motor.max_speed = max_speed->number();
+    if (max_force) motor.max_force = max_force->number();
+    return motor;
+  }
+
+  // Motor values take their kind from the joint: rad/s or m/s, N m or N.
+  bool check_kind(const Node& value, const std::string& kind, bool revolute) {
+    if (value.dimension.empty() || value.dimension == kind) return true;
+    diags_.error(value, "'" + value.text + "' does not fit a " +
+                            (revolute ? "revolute" : "prismatic") + " joint, expected " +
+                            (kind == "angular_speed" ? "an angular speed (rad/s)"
+                             : kind == "speed"       ? "a speed (m/s)"
+                             : kind == "torque"      ? "a torque (N m)"
+                                                     : "a force (N)"));
+    return false;
+  }
+
+  // ---------------------------------------------------------------- domain
+
+  void read_domain() {
+    const Node* domain = root_.find("domain");
+    if (!domain) return;
+    if (auto box = aabb(domain->at("box"))) sim_.domain = *box;
+  }
+
+  // A box with min < max on every axis.
+  std::optional<geo::Aabb> aabb(const Node& box) {
+    const geo::Aabb b{vec3(box.at("min")), vec3(box.at("max"))};
+    if ((b.min.array() < b.max.array()).all()) return b;
+    diags_.error(box.at("max"), "max is not above min on every axis, expected max > min");
+    return std::nullopt;
+  }
+
+  bool inside_domain(const geo::Aabb& b) const {
+    return !sim_.domain || ((b.min.array() >= sim_.domain->min.array()).all() &&
+                            (b.max.array() <= sim_.domain->max.array()).all());
+  }
+
+  // ---------------------------------------------------------------- feeds
+
+  void read_feeds() {
+    const Node* list = root_.find("feeds");
+    if (!list) return;
+    NameTable names("feed");
+    for (const Node& f : list->items) {
+      names.declare(f.at("name").string(), f.at("name").mark, f.at("name").path,
+                    int(sim_.feeds.size()), diags_);
+      Feed feed;
+      feed.name = f.at("name").string();
+      feed.start = f.at("start").number();
+      if (const Node* duration = f.find("duration")) feed.duration = duration->number();
+      const Node& rate = f.at("rate");
+      (rate.dimension == "mass_rate" ? feed.mass_rate : feed.count_rate) = rate.number();
+      feed.velocity = vec3(f.at("velocity"));
+      feed.velocity_spread = f.at("velocity_spread").number();
+      feed.random_orientation = f.at("random_orientation").boolean();
+      feed.max_attempts = f.at("max_attempts").scalar.get<int>();
+      const std::vector<double> across = read_mix(f.at("mix"), feed);
+      const Node& region = f.at("region");
+      if (const auto box = feed_region(region)) {
+        feed.region = *box;
+        check_fit(region, *box, across);
+      }
+      sim_.feeds.push_back(std::move(feed));
+    }
+  }
+
+  std::optional<geo::Aabb> feed_region(const Node& region) {
+    std::optional<geo::Aabb> box;
+    if (const Node* b = region.find("box")) {
+      box = aabb(*b);
+    } else {
+      box = outlet(region.at("outlet"));
+    }
+    if (box && !inside_domain(*box)) {
+      diags_.error(
+          region,
+          "the region reaches outside the domain, so particles would be lost as they appear; "
+          "expected a region inside domain.box");
+      return std::nullopt;
+    }
+    return box;
+  }
+
+  // The feed region is an axis-aligned box, so an outlet faces along an axis.
+  std::optional<geo::Aabb> outlet(const Node& o) {
+    const Vec3 n = vec3(o.at("normal"));
+    int axis = -1;
+    for (int k = 0; k < 3; ++k)
+      if (n[k] != 0.0 && n[(k + 1) % 3] == 0.0 && n[(k + 2) % 3] == 0.0) axis = k;
+    if (axis < 0) {
+      diags_.error(o.at("normal"), "got an oblique normal, expected one along x, y or z");
+      return std::nullopt;
+    }
+    // The size lists the two other axes in x, y, z order.
+    const int u = axis == 0 ? 1 : 0;
+    const int v = axis == 2 ? 1 : 2;
+    Vec3 half = Vec3::Zero();
+    half[u] = 0.5 * o.at("size").items[0].number();
+    half[v] = 0.5 * o.at("size").items[1].number();
+    const Vec3 c = vec3(o.at("center"));
+    return geo::Aabb{c - half, c + half};
+  }
+
+  // Returns the bounding diameter of each component's largest particles.
+  std::vector<double> read_mix(const Node& mix, Feed& feed) {
+    std::vector<double> across;
+    double total = 0.0;
+    for (const Node& c : mix.items) {
+      FeedComponent component;
+      component.mass_fraction = c.at("fraction").number();
+      total += component.mass_fraction;
+      const auto material = dense_material(c.at("material"), "feed '" + feed.name + "'");
+      const auto shape = particle_shape(c.find("shape"));
+      const feed::Basis basis =
+          c.at("by").string() == "mass" ? feed::Basis::mass : feed::Basis::number;
+      const auto size = size_distribution(c.at("size"), basis);
+      if (!material || !shape || !size) continue;
+      component.material = *material;
+      component.shape = *shape;
+      component.shape_size = shape_sizes_[std::size_t(*shape)];
+      component.size = *size;
+      feed.mix.push_back(component);
+      const double diameter = size->quantile_by_number(is_bounded(c.at("size")) ? 1.0 : 1.0 - 1e-6);
+      across.push_back(2.0 * model_->shapes[std::size_t(*shape)].bounding_radius * diameter /
+                       component.shape_size);
+    }
+    if (std::abs(total - 1.0) > 1e-9)
+      diags_.error(mix, "the fractions add up to " + format(total) + ", expected 1");
+    return across;
+  }
+
+  // Normal and lognormal laws without a max have no largest particle: their
+  // one-in-a-million size stands in for it.
+  static bool is_bounded(const Node& size) {
+    const Entry& law = size.entries.front();
+    return law.key == "constant" || law.key == "uniform" || law.key == "sieve" ||
+           law.value.find("max");
+  }
+
+  // The largest particles against the region's extent (an outlet's
+  // thickness excepted).
+  void check_fit(const Node& region, const geo::Aabb& box, const std::vector<double>& across) {
+    const Vec3 extent = box.max - box.min;
+    const double largest = across.empty() ? 0.0 : *std::max_element(across.begin(), across.end());
+    for (int k = 0; k < 3; ++k) {
+      if (extent[k] == 0.0 || extent[k] >= largest) continue;
+      diags_.error(region, "the region is " + metres(extent[k]) + " wide along " + "xyz"[k] +
+                               " but the largest particles are " + metres(largest) +
+                               " across, expected a region that holds them");
+      return;
+    }
+  }
+
+  // ---------------------------------------------------------------- particle shapes
+
+  // A shapes entry, compiled on first use; nullptr: the unit sphere.
+  std::optional<int> particle_shape(const Node* ref) {
+    const std::string key = ref ? ref->string() : "";
+    if (const auto it = shape_index_.find(key); it != shape_index_.end()) return it->second;
+    const Node* shapes = root_.find("shapes");
+    const Node* spec = ref && shapes ? shapes->find(key) : nullptr;
+    if (ref && !spec) {
+      NameTable known("shape");
+      if (shapes)
+        for (const Entry& e : shapes->entries) known.declare(e.key, e.key_mark, "", 0, diags_);
+      known.resolve(*ref, diags_);
+      return std::nullopt;
+    }
+    std::vector<Vec3> centers{Vec3::Zero()};
+    std::vector<double> radii{0.5};
+    if (spec) {
+      centers.clear();
+      radii.clear();
+      for (const Node& s : spec->at("spheres").items) {
+        centers.push_back(vec3(s));
+        radii.push_back(s.items[3].number());
+      }
+    }
+    const ParticleShape shape = make_particle_shape(centers, radii);
+    const Node* size = spec ? spec->find("size") : nullptr;
+    const int index = int(model_->shapes.size());
+    model_->shapes.push_back(shape);
+    shape_sizes_.push_back(size ? size->number() : 2.0 * shape.bounding_radius);
+    shape_index_[key] = index;
+    return index;
+  }
+
+  // ---------------------------------------------------------------- sizes
+
+  std::optional<feed::SizeDistribution> size_distribution(const Node& size, feed::Basis basis) {
+    const Entry& law = size.entries.front();  // the schema allows exactly one
+    const Node& s = law.value;
+    try {
+      if (law.key == "constant") return feed::SizeDistribution::constant(s.number());
+      if (law.key == "sieve") return sieve(s, basis);
+      const double min = s.find("min") ? s.at("min").number() : 0.0;
+      const double max = s.find("max") ? s.at("max").number() : kInf;
+      if (!(min < max)) {
+        diags_.error(s.at("max"), "max " + metres(max) + " is not above min " + metres(min) +
+                                      ", expected max > min");
+        return std::nullopt;
+      }
+      if (law.key == "uniform") return feed::SizeDistribution::uniform(min, max, basis);
+      if (law.key == "normal")
+        return feed::SizeDistribution::normal(s.at("mean").number(), s.at("sd").number(), min, max,
+                                              basis);
+      return feed::SizeDistribution::lognormal(s.at("median").number(), s.at("sigma").number(), min,
+                                               max, basis);
+    } catch (const std::invalid_argument& e) {
+      diags_.error(size, std::string(e.what()) + ", expected a size law with particles in it");
+      return std::nullopt;
+    }
+  }
+
+  std::optional<feed::SizeDistribution> sieve(const Node& rows, feed::Basis basis) {
+    std::vector<feed::SizeDistribution::SievePoint> table;
+    for (const Node& row : rows.items) {
+      const feed::SizeDistribution::SievePoint p{row.items[0].number(), row.items[1].number()};
+      if (!table.empty() && !(p.size > table.back().size))
+        return sieve_error(row, "sizes must increase from row to row");
+      if (!table.empty() && p.passing < table.back().passing)
+        return sieve_error(row, "the fraction passing must not decrease");
+      table.push_back(p);
+    }
+    if (table.front().passing != 0.0)
+      return sieve_error(rows.items.front(), "the first row must pass 0");
+    if (table.back().passing != 1.0)
+      return sieve_error(rows.items.back(), "the last row must pass 1");
+    return feed::SizeDistribution::sieve(table, basis);
+  }
+
+  std::nullopt_t sieve_error(const Node& row, const std::string& what) {
+    diags_.error(row, "invalid sieve row: " + what +
+                          ", expected [size, fraction passing] rows with sizes rising "
+                          "and fractions rising from 0 to 1");
+    return std::nullopt;
+  }
+
+  // ---------------------------------------------------------------- collectors
+
+  void read_collectors() {
+    const Node* list = root_.find("collectors");
+    if (!list) return;
+    NameTable names("collector");
+    for (const Node& c : list->items) {
+      names.declare(c.at("name").string(), c.at("name").mark, c.at("name").path,
+                    int(sim_.collectors.size()), diags_);
+      Collector collector;
+      collector.name = c.at("name").string();
+      const Node& plane = c.at("plane");
+      const Node& bins = c.at("bins");
+      collector.point = vec3(plane.at("point"));
+      collector.normal = direction(plane.at("normal")).value_or(Vec3::UnitY());
+      collector.axis = direction(bins.at("axis")).value_or(Vec3::UnitX());
+      collector.from = bins.at("from").number();
+      collector.to = bins.at("to").number();
+      collector.bins = bins.at("count").scalar.get<int>();
+      if (check_bins(bins, collector)) read_products(c.find("products"), collector);
+      check_reachable(plane, collector);
+      sim_.collectors.push_back(std::move(collector));
+    }
+  }
+
+  bool check_bins(const Node& bins, const Collector& c) {
+    if (std::abs(c.axis.dot(c.normal)) > 1.0 - 1e-9) {
+      diags_.error(bins.at("axis"),
+                   "the bin axis is along the plane's normal, so every particle would land at "
+                   "the same place; expected an axis in the plane");
+      return false;
+    }
+    if (!(c.from < c.to)) {
+      diags_.error(bins.at("to"), "to " + metres(c.to) + " is not above from " + metres(c.from) +
+                                      ", expected from < to");
+      return false;
+    }
+    return true;
+  }
+
+  void read_products(const Node* products, Collector& c) {
+    if (!products) return;
+    std::vector<std::pair<Product, const Node*>> sorted;
+    for (const Entry& e : products->entries) {
+      const Product p{e.key, e.value.items[0].number(), e.value.items[1].number()};
+      if (!(p.from < p.to)) {
+        diags_.error(e.value, "the range is empty or reversed, expected [from, to] with from < to");
+      } else if (p.from < c.from || p.to > c.to) {
+        diags_.error(e.value, "the range leaves the bins [" + format(c.from) + ", " + format(c.to) +
+                                  "] m, expected a range inside them");
+      } else {
+        sorted.emplace_back(p, &e.value);
+      }
+      c.products.push_back(p);
+    }
+    std::sort(sorted.begin(), sorted.end(),
+              [](const auto& a, const auto& b) { return a.first.from < b.first.from; });
+    for (std::size_t i = 1; i < sorted.size(); ++i) {
+      if (sorted[i].first.from < sorted[i - 1].first.to)
+        diags_.error(*sorted[i].second, "overlaps product '" + sorted[i - 1].first.name +
+                                            "', expected products that do not overlap");
+    }
+  }
+
+  // With a domain, the plane must cut it: particles leave the domain first
+  // otherwise.
+  void check_reachable(const Node& plane, const Collector& c) {
+    if (!sim_.domain) return;
+    double lo = kInf, hi = -kInf;
+    for (int k = 0; k < 8; ++k) {
+      const Vec3 corner((k & 1) ? sim_.domain->max.x() : sim_.domain->min.x(),
+                        (k & 2) ? sim_.domain->max.y() : sim_.domain->min.y(),
+                        (k & 4) ? sim_.domain->max.z() : sim_.domain->min.z());
+      const double side = c.normal.dot(corner - c.point);
+      lo = std::min(lo, side);
+      hi = std::max(hi, side);
+    }
+    if (lo >= 0.0 || hi <= 0.0)
+      diags_.error(
+          plane,
+          "the plane misses the domain, so no particle can reach it; expected a plane through "
+          "domain.box");
+  }
+
+  // ---------------------------------------------------------------- output
+
+  void read_output() {
+    const Node& out = root_.at("output");
+    sim_.output.dir = out.at("dir").string();
+    sim_.output.steps_csv = out.at("steps").boolean();
+    sim_.output.distribution_svg = out.at("distribution").boolean();
+    if (const Node* t = out.find("trajectories")) {
+      const std::string& kind = t->at("format").string();
+      sim_.output.trajectories.every = t->at("every").number();
+      sim_.output.trajectories.vtk = kind != "csv";
+      sim_.output.trajectories.csv = kind != "vtk";
+    } else {
+      sim_.output.trajectories = {0.0, false, false};
+    }
+  }
+
+  // What the run has to build (DESIGN.md §1): absent sections cost nothing.
+  void list_components() {
+    const Model& m = *model_;
+    const auto any_body = [&](BodyKind kind) {
+      return std::any_of(m.bodies.begin(), m.bodies.end(),
+                         [&](const RigidBody& b) { return b.kind == kind; });
+    };
+    const bool meshes = std::any_of(m.bodies.begin(), m.bodies.end(), [](const RigidBody& b) {
+      return std::holds_alternative<std::shared_ptr<const geo::TriMesh>>(b.shape);
+    });
+    const bool clusters = std::any_of(m.shapes.begin(), m.shapes.end(),
+                                      [](const ParticleShape& s) { return !s.is_sphere(); });
+    const std::vector<std::pair<const char*, bool>> components = {
+        {"gravity", m.gravity != Vec3::Zero()},
+        {"contacts", !sim_.feeds.empty() || any_body(BodyKind::Dynamic)},
+        {"kinematic_bodies", any_body(BodyKind::Kinematic)},
+        {"dynamic_bodies", any_body(BodyKind::Dynamic)},
+        {"joints", !m.joints.empty()},
+        {"motors", !m.motors.empty()},
+        {"meshes", meshes},
+        {"clusters", clusters},
+        {"feeds", !sim_.feeds.empty()},
+        {"collectors", !sim_.collectors.empty()},
+        {"domain", sim_.domain.has_value()},
+        {"trajectories", sim_.output.trajectories.every > 0.0},
+    };
+    for (const auto& [name, on] : components)
+      if (on) sim_.active_components.push_back(name);
+  }
+
+  const Node& root_;
+  fs::path scene_dir_;
+  Diagnostics& diags_;
+  Simulation sim_;
+  std::shared_ptr<Model> model_;
+  NameTable materials_{"material"};
+  NameTable bodies_{"body"};
+  NameTable joints_{"joint"};
+  std::vector<bool> has_density_;
+  std::map<std::string, int> shape_index_;  // shapes entry ("" = sphere) -> Model::shapes
+  std::vector<double> shape_sizes_;         // per Model::shapes entry
+};
+
+}  // namespace
+
+Simulation compile(const Node& root, const std::string& scene_path, Diagnostics& diags) {
+  return Compiler(root, scene_path, diags).build();
+}
+
+}  // namespace ces::scene

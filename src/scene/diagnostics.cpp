@@ -1,0 +1,104 @@
+#include "scene/diagnostics.hpp"
+
+#include <algorithm>
+#include <tuple>
+
+namespace ces::scene {
+namespace {
+
+// Optimal string alignment distance: Levenshtein plus adjacent
+// transpositions, the commonest typo ("apdg" for "apgd").
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::vector<std::size_t>> d(a.size() + 1, std::vector<std::size_t>(b.size() + 1));
+  for (std::size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (std::size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t cost = a[i - 1] == b[j - 1] ? 0 : 1;
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  }
+  return d[a.size()][b.size()];
+}
+
+}  // namespace
+
+std::string Diagnostic::str() const {
+  std::string s = file;
+  if (line > 0) {
+    s += ':';
+    s += std::to_string(line);
+    s += ':';
+    s += std::to_string(column);
+  }
+  s += ": ";
+  if (!path.empty()) s += path + ": ";
+  return s + message;
+}
+
+SceneError::SceneError(std::vector<Diagnostic> d)
+    : std::runtime_error(d.empty() ? "invalid scene" : d.front().str()),
+      diagnostics_(std::move(d)) {}
+
+void Diagnostics::error(const Mark& at, std::string path, std::string message) {
+  list_.push_back({at.file, at.line, at.column, std::move(path), std::move(message)});
+}
+
+void Diagnostics::error(Node& at, std::string message) {
+  at.reported = true;
+  error(at.mark, at.path, std::move(message));
+}
+
+void Diagnostics::error(const Node& at, std::string message) {
+  error(at.mark, at.path, std::move(message));
+}
+
+void Diagnostics::raise() {
+  const auto key = [](const Diagnostic& d) {
+    return std::tie(d.file, d.line, d.column, d.path, d.message);
+  };
+  std::stable_sort(list_.begin(), list_.end(),
+                   [&](const Diagnostic& a, const Diagnostic& b) { return key(a) < key(b); });
+  list_.erase(
+      std::unique(list_.begin(), list_.end(),
+                  [&](const Diagnostic& a, const Diagnostic& b) { return key(a) == key(b); }),
+      list_.end());
+  throw SceneError(std::move(list_));
+}
+
+std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates) {
+  // Up to a third of the word may be wrong (at least one letter): "densty",
+  // "frcition" and "apdg" are caught; unrelated names are not suggested.
+  const std::size_t limit = std::max<std::size_t>(1, word.size() / 3);
+  const std::string* best = nullptr;
+  std::size_t best_distance = limit + 1;
+  for (const std::string& c : candidates) {
+    const std::size_t d = edit_distance(word, c);
+    if (d < best_distance) {
+      best = &c;
+      best_distance = d;
+    }
+  }
+  return best ? " (did you mean '" + *best + "'?)" : "";
+}
+
+std::string one_of(const std::vector<std::string>& names, std::string_view last) {
+  std::string s;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    if (i > 0) {
+      if (i + 1 < names.size()) {
+        s += ", ";
+      } else {
+        s += ' ';
+        s += last;
+        s += ' ';
+      }
+    }
+    s += names[i];
+  }
+  return s;
+}
+
+}  // namespace ces::scene

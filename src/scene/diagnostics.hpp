@@ -1,0 +1,34 @@
+// Collects every problem of a scene before anything is thrown.
+#pragma once
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "scene/scene.hpp"
+#include "scene/tree.hpp"
+
+namespace ces::scene {
+
+class Diagnostics {
+ public:
+  void error(const Mark& at, std::string path, std::string message);
+  // At a node of the tree; marks it reported so later passes stay quiet.
+  void error(Node& at, std::string message);
+  void error(const Node& at, std::string message);
+
+  bool empty() const { return list_.empty(); }
+  // Throws SceneError with everything collected, sorted by place.
+  [[noreturn]] void raise();
+
+ private:
+  std::vector<Diagnostic> list_;
+};
+
+// " (did you mean 'density'?)" when a candidate is a plausible typo of
+// `word`, else "".
+std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates);
+
+// "a, b or c" ("a, b and c" with last = "and").
+std::string one_of(const std::vector<std::string>& names, std::string_view last = "or");
+
+}  // namespace ces::scene

@@ -1,0 +1,254 @@
+#include "scene/resolve.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "scene/diagnostics.hpp"
+#include "scene/schema.hpp"
+
+namespace ces::scene {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool is_json(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  return ext == ".json";
+}
+
+std::optional<std::string> read_file(const std::string& path, std::string& why) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) {
+    why = fs::exists(path, ec) ? "not a regular file" : "no such file";
+    return std::nullopt;
+  }
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (!in) {
+    why = "cannot read it";
+    return std::nullopt;
+  }
+  return text.str();
+}
+
+// Later values win: maps merge key by key, lists concatenate.
+void merge(Node& into, Node&& from) {
+  if (into.is_map() && from.is_map()) {
+    for (Entry& e : from.entries) {
+      auto same = std::find_if(into.entries.begin(), into.entries.end(),
+                               [&](const Entry& x) { return x.key == e.key; });
+      if (same == into.entries.end()) {
+        into.entries.push_back(std::move(e));
+      } else {
+        same->key_mark = e.key_mark;
+        merge(same->value, std::move(e.value));
+      }
+    }
+  } else if (into.is_sequence() && from.is_sequence()) {
+    for (Node& item : from.items) into.items.push_back(std::move(item));
+  } else {
+    into = std::move(from);
+    return;
+  }
+  into.mark = from.mark;
+}
+
+class Includer {
+ public:
+  explicit Includer(Diagnostics& diags) : diags_(diags) {}
+
+  // `named_at`: the include entry that asked for the file (none for the scene).
+  std::optional<Node> load(const std::string& path, const std::optional<Mark>& named_at) {
+    const Mark where = named_at.value_or(Mark{path, 0, 0});
+    std::string why;
+    const auto text = read_file(path, why);
+    if (!text) {
+      diags_.error(where, named_at ? "include" : "", "cannot read '" + path + "': " + why);
+      return std::nullopt;
+    }
+    return load_text(*text, path, where);
+  }
+
+  std::optional<Node> load_text(const std::string& text, const std::string& path,
+                                const Mark& where) {
+    std::error_code ec;
+    const std::string id = fs::weakly_canonical(path, ec).string();
+    const auto cycle = std::find(ids_.begin(), ids_.end(), id);
+    if (cycle != ids_.end()) {
+      std::string chain;
+      for (auto it = cycle; it != ids_.end(); ++it)
+        chain += names_[std::size_t(it - ids_.begin())] + " -> ";
+      diags_.error(where, "include", "include cycle: " + chain + path);
+      return std::nullopt;
+    }
+    std::optional<Node> root = parse(text, path, is_json(path), diags_);
+    if (!root) return std::nullopt;
+    if (!root->is_map()) {
+      diags_.error({path, 1, 1}, "",
+                   "got " + describe(*root) + ", expected a mapping of scene keys");
+      return std::nullopt;
+    }
+    ids_.push_back(id);
+    names_.push_back(path);
+    Node merged = expand(std::move(*root), path);
+    ids_.pop_back();
+    names_.pop_back();
+    return merged;
+  }
+
+ private:
+  // The file's own keys over the merge of its includes.
+  Node expand(Node root, const std::string& path) {
+    const auto include = std::find_if(root.entries.begin(), root.entries.end(),
+                                      [](const Entry& e) { return e.key == "include"; });
+    if (include == root.entries.end()) return root;
+    const Node list = std::move(include->value);
+    root.entries.erase(include);
+    Node base;
+    base.kind = Node::Kind::Map;
+    for (const Node& name : list.is_sequence() ? list.items : std::vector<Node>{list}) {
+      if (!name.is_string()) {
+        diags_.error(name.mark, "include",
+                     "got " + describe(name) + ", expected a file name or a list of file names");
+        continue;
+      }
+      const std::string child =
+          (fs::path(path).parent_path() / name.string()).lexically_normal().string();
+      if (auto fragment = load(child, name.mark)) merge(base, std::move(*fragment));
+    }
+    merge(base, std::move(root));
+    return base;
+  }
+
+  Diagnostics& diags_;
+  std::vector<std::string> ids_;    // canonical paths of the files being read
+  std::vector<std::string> names_;  // the same, as written, for messages
+};
+
+// "bodies[0].material" and "bodies.0.material" both give bodies, 0, material.
+std::vector<std::string> split_path(const std::string& key_path) {
+  std::string dotted = key_path;
+  std::replace(dotted.begin(), dotted.end(), '[', '.');
+  dotted.erase(std::remove(dotted.begin(), dotted.end(), ']'), dotted.end());
+  std::vector<std::string> segments;
+  std::istringstream in(dotted);
+  for (std::string s; std::getline(in, s, '.');) segments.push_back(s);
+  if (!dotted.empty() && dotted.back() == '.') segments.emplace_back();
+  return segments;
+}
+
+// An index, or the name of an item of a list of named mappings.
+std::optional<std::size_t> find_item(const Node& list, const std::string& segment) {
+  if (!segment.empty() && std::all_of(segment.begin(), segment.end(), ::isdigit)) {
+    const std::size_t i = std::stoul(segment);
+    if (i < list.items.size()) return i;
+    return std::nullopt;
+  }
+  for (std::size_t i = 0; i < list.items.size(); ++i) {
+    const Node* name = list.items[i].find("name");
+    if (name && name->is_string() && name->string() == segment) return i;
+  }
+  return std::nullopt;
+}
+
+void set_marks(Node& n, const Mark& mark) {
+  n.mark = mark;
+  for (Node& item : n.items) set_marks(item, mark);
+  for (Entry& e : n.entries) {
+    e.key_mark = mark;
+    set_marks(e.value, mark);
+  }
+}
+
+std::optional<Node> parse_value(const std::string& value, const Mark& mark, Diagnostics& diags) {
+  try {
+    (void)YAML::Load(value);
+  } catch (const YAML::Exception& e) {
+    diags.error(mark, "", "cannot parse the value '" + value + "': " + e.msg);
+    return std::nullopt;
+  }
+  std::optional<Node> node = parse(value, mark.file, false, diags);
+  if (node) set_marks(*node, mark);
+  return node;
+}
+
+// The absolute form of a folder given relative to the working directory
+// ("" is the working directory itself).
+fs::path absolute_folder(const fs::path& folder) {
+  return fs::absolute(folder.empty() ? fs::path(".") : folder).lexically_normal();
+}
+
+}  // namespace
+
+std::optional<Node> load_tree(const std::string& path, Diagnostics& diags) {
+  return Includer(diags).load(path, std::nullopt);
+}
+
+std::optional<Node> load_tree_text(const std::string& text, const std::string& path,
+                                   Diagnostics& diags) {
+  return Includer(diags).load_text(text, path, {path, 0, 0});
+}
+
+void apply_override(Node& root, const std::string& key_path, const std::string& value, int ordinal,
+                    Diagnostics& diags) {
+  const Mark mark{"--set", ordinal, 1};
+  const std::vector<std::string> segments = split_path(key_path);
+  const bool blank =
+      std::any_of(segments.begin(), segments.end(), [](const auto& s) { return s.empty(); });
+  if (segments.empty() || blank)
+    return diags.error(mark, key_path, "invalid override path, expected key.path=value");
+  if (segments.front() == "include")
+    return diags.error(mark, key_path, "includes cannot be overridden, expected a scene key");
+  std::optional<Node> replacement = parse_value(value, mark, diags);
+  if (!replacement) return;
+  Node* n = &root;
+  std::string walked;
+  for (const std::string& s : segments) {
+    if (n->kind == Node::Kind::Null) n->kind = Node::Kind::Map;  // "trajectories:" left empty
+    if (n->is_map()) {
+      Node* child = n->find(s);
+      if (!child) {
+        n->entries.push_back({s, mark, Node{}});
+        child = &n->entries.back().value;
+        child->mark = mark;
+      }
+      n = child;
+    } else if (n->is_sequence()) {
+      const auto index = find_item(*n, s);
+      if (!index)
+        return diags.error(mark, key_path,
+                           "invalid override path: '" + walked + "' has no item '" + s +
+                               "', expected an index below " + std::to_string(n->items.size()) +
+                               " or the name of an item");
+      n = &n->items[*index];
+    } else {
+      return diags.error(mark, key_path,
+                         "invalid override path: '" + walked + "' is " + describe(*n) +
+                             ", not a mapping or a list");
+    }
+    walked += (walked.empty() ? "" : ".") + s;
+  }
+  *n = std::move(*replacement);
+}
+
+void rebase_paths(Node& root, const std::string& scene_path) {
+  const fs::path scene_dir = absolute_folder(fs::path(scene_path).parent_path());
+  walk_schema(root, [&](Node& n, const nlohmann::ordered_json* s) {
+    if (!s || !n.is_string() || !keyword(*s, "x-path")) return;
+    const fs::path written(n.string());
+    if (written.is_absolute()) return;
+    const fs::path base = n.mark.file == "--set" ? fs::path() : fs::path(n.mark.file).parent_path();
+    const fs::path target = (absolute_folder(base) / written).lexically_normal();
+    const fs::path relative = target.lexically_relative(scene_dir);
+    n.scalar = n.text = (relative.empty() ? target : relative).generic_string();
+  });
+}
+
+}  // namespace ces::scene

@@ -1,0 +1,35 @@
+// From files to one tree: includes, --set overrides, relative paths.
+#pragma once
+#include <optional>
+#include <string>
+
+#include "scene/tree.hpp"
+
+namespace ces::scene {
+
+class Diagnostics;
+
+// Reads `path` (or parses `text` as if read from `path`) and merges in the
+// fragments its top-level `include:` names, recursively, relative to the
+// including file. Precedence, lowest first: earlier includes, later
+// includes, the including file. Maps merge key by key, lists concatenate
+// (included items first), any other value is replaced. Cycles are errors.
+std::optional<Node> load_tree(const std::string& path, Diagnostics& diags);
+std::optional<Node> load_tree_text(const std::string& text, const std::string& path,
+                                   Diagnostics& diags);
+
+// Applies one "--set key.path=value" (the ordinal-th, 1-based; it names the
+// override in diagnostics). The path walks maps by key, creating missing
+// ones, and lists by index ("bodies.0" or "bodies[0]") or by an item's name
+// ("bodies.drum"). The value is parsed as YAML ("0.5 mm", "[0, 1, 0]",
+// "{speed: 60 rpm}").
+void apply_override(Node& root, const std::string& key_path, const std::string& value, int ordinal,
+                    Diagnostics& diags);
+
+// Rewrites the strings the schema marks as paths ("x-path") from relative
+// to the file that wrote them to relative to the scene's folder, so the
+// resolved scene stands alone next to the scene file. --set paths are
+// relative to the working directory, like any command-line path.
+void rebase_paths(Node& root, const std::string& scene_path);
+
+}  // namespace ces::scene

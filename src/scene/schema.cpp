@@ -1,0 +1,363 @@
+#include "scene/schema.hpp"
+
+#include <cmath>
+#include <set>
+#include <sstream>
+#include <valijson/adapters/nlohmann_json_adapter.hpp>
+#include <valijson/schema.hpp>
+#include <valijson/schema_parser.hpp>
+#include <valijson/validator.hpp>
+#include <variant>
+
+#include "scene/diagnostics.hpp"
+#include "scene/schema_text.hpp"  // generated from schema/scene.schema.json
+#include "scene/units.hpp"
+
+namespace ces::scene {
+
+using ojson = nlohmann::ordered_json;
+
+const std::string& schema_text() {
+  static const std::string text(kSceneSchemaText);
+  return text;
+}
+
+const ojson& schema() {
+  static const ojson parsed = ojson::parse(schema_text());
+  return parsed;
+}
+
+namespace {
+
+const ojson& dereference(const ojson& ref) {
+  // Local references only: "#/definitions/length".
+  return schema().at(ojson::json_pointer(ref.get<std::string>().substr(1)));
+}
+
+const ojson* property_schema(const ojson& s, const std::string& key) {
+  if (const ojson* props = keyword(s, "properties"); props && props->contains(key))
+    return &props->at(key);
+  const ojson* extra = keyword(s, "additionalProperties");
+  return extra && extra->is_object() ? extra : nullptr;
+}
+
+const ojson* item_schema(const ojson& s, std::size_t index) {
+  const ojson* items = keyword(s, "items");
+  if (!items || !items->is_array()) return items;
+  return index < items->size() ? &(*items)[index] : nullptr;
+}
+
+std::vector<std::string> property_names(const ojson& s) {
+  std::vector<std::string> names;
+  if (const ojson* props = keyword(s, "properties"))
+    for (const auto& [name, sub] : props->items()) names.push_back(name);
+  return names;
+}
+
+void walk(Node& n, const ojson* s, const std::function<void(Node&, const ojson*)>& visit) {
+  visit(n, s);
+  for (std::size_t i = 0; i < n.items.size(); ++i)
+    walk(n.items[i], s ? item_schema(*s, i) : nullptr, visit);
+  for (std::size_t i = 0; i < n.entries.size(); ++i)
+    walk(n.entries[i].value, s ? property_schema(*s, n.entries[i].key) : nullptr, visit);
+}
+
+// ------------------------------------------------------------ words for kinds
+
+std::vector<const units::Kind*> unit_kinds(const ojson& s) {
+  std::vector<const units::Kind*> kinds;
+  if (const ojson* unit = keyword(s, "x-unit")) {
+    for (const ojson& name : unit->is_array() ? *unit : ojson::array({*unit}))
+      kinds.push_back(units::find_kind(name.get<std::string>()));
+  }
+  return kinds;
+}
+
+// "a length (m), e.g. "0.8 mm"" or "a mass rate (kg/s) or a count rate (1/s), e.g. ...".
+std::string describe_kinds(const std::vector<const units::Kind*>& kinds) {
+  std::vector<std::string> labels, examples;
+  for (const units::Kind* k : kinds) {
+    labels.push_back(std::string(k->label) + " (" + std::string(k->si) + ")");
+    examples.push_back("\"" + std::string(k->example) + "\"");
+  }
+  return one_of(labels) + ", e.g. " + one_of(examples);
+}
+
+std::string format_number(double x) {
+  std::ostringstream s;
+  s << x;
+  return s.str();
+}
+
+std::string enum_words(const ojson& values) {
+  std::vector<std::string> names;
+  for (const ojson& v : values) names.push_back(v.is_string() ? v.get<std::string>() : v.dump());
+  return one_of(names);
+}
+
+// What a subschema accepts, in words.
+std::string expected(const ojson& s) {
+  if (const auto kinds = unit_kinds(s); !kinds.empty()) return describe_kinds(kinds);
+  if (const ojson* values = keyword(s, "enum")) return "one of " + enum_words(*values);
+  if (const ojson* value = keyword(s, "const")) return value->dump();
+  const ojson* type = keyword(s, "type");
+  const std::string t = type && type->is_string() ? type->get<std::string>() : "";
+  if (t == "string") return "a string";
+  if (t == "integer") return "an integer";
+  if (t == "number") return "a number";
+  if (t == "boolean") return "true or false";
+  if (t == "array") {
+    const ojson* n = keyword(s, "minItems");
+    const ojson* m = keyword(s, "maxItems");
+    if (n && m && *n == *m) return "a list of " + n->dump() + " values";
+    return "a list";
+  }
+  if (t == "object") {
+    const ojson* m = keyword(s, "maxProperties");
+    if (m && *m == 1) return "a mapping with one of " + one_of(property_names(s));
+    return "a mapping";
+  }
+  return "a value matching the schema";
+}
+
+// ------------------------------------------------------------ defaults, units
+
+void add_defaults(Node& n, const ojson* s) {
+  if (!n.is_map() || !s) return;
+  const ojson* props = keyword(*s, "properties");
+  if (!props) return;
+  for (const auto& [key, sub] : props->items()) {
+    const ojson* value = keyword(sub, "default");
+    if (value && !n.find(key)) n.entries.push_back({key, n.mark, from_json(*value, n.mark)});
+  }
+}
+
+void convert_quantity(Node& n, const ojson* s, Diagnostics& diags) {
+  if (!s || n.kind != Node::Kind::Scalar) return;
+  const auto kinds = unit_kinds(*s);
+  if (kinds.empty()) return;
+  if (n.is_number()) {
+    const ojson* required = keyword(*s, "x-unit-required");
+    if (required && required->get<bool>())
+      diags.error(n,
+                  "a number without a unit is ambiguous here, expected " + describe_kinds(kinds));
+    return;
+  }
+  if (!n.is_string()) return;  // booleans: the schema reports the type
+  const auto parsed = units::parse(n.string());
+  if (const auto* error = std::get_if<std::string>(&parsed)) {
+    diags.error(n, "'" + n.text + "': " + *error + ", expected " + describe_kinds(kinds));
+    return;
+  }
+  const auto& q = std::get<units::Quantity>(parsed);
+  for (const units::Kind* k : kinds) {
+    if (k->dimension == q.dimension) {
+      n.scalar = q.value;
+      n.dimension = k->name;
+      return;
+    }
+  }
+  diags.error(n, "'" + n.text + "' is " + units::describe(q.dimension) + ", expected " +
+                     describe_kinds(kinds));
+}
+
+// ------------------------------------------------------------ validation
+
+const valijson::Schema& compiled_schema() {
+  struct Compiled {
+    valijson::Schema schema;
+    Compiled() {
+      const nlohmann::json document = nlohmann::json::parse(schema_text());
+      valijson::SchemaParser parser(valijson::SchemaParser::kDraft7);
+      parser.populateSchema(valijson::adapters::NlohmannJsonAdapter(document), schema);
+    }
+  };
+  static const Compiled compiled;
+  return compiled.schema;
+}
+
+// The node a valijson context ("<root>", "[bodies]", "[0]", ...) names, with
+// its subschema. `quiet` when it or a parent was reported already.
+struct Located {
+  const Node* node = nullptr;
+  const ojson* schema = nullptr;
+  bool quiet = false;
+};
+
+Located locate(const Node& root, const std::vector<std::string>& context) {
+  Located at{&root, &scene::schema(), root.reported};
+  for (std::size_t i = 1; i < context.size() && at.node; ++i) {
+    const std::string key = context[i].substr(1, context[i].size() - 2);  // strip [ ]
+    const Node* next = nullptr;
+    if (at.node->is_map()) {
+      next = at.node->find(key);
+      at.schema = at.schema ? property_schema(*at.schema, key) : nullptr;
+    } else if (at.node->is_sequence()) {
+      const std::size_t index = std::stoul(key);
+      next = index < at.node->items.size() ? &at.node->items[index] : nullptr;
+      at.schema = at.schema ? item_schema(*at.schema, index) : nullptr;
+    }
+    at.node = next;
+    at.quiet = at.quiet || (next && next->reported);
+  }
+  return at;
+}
+
+std::string child_path(const Node& parent, const std::string& key) {
+  return parent.path.empty() ? key : parent.path + "." + key;
+}
+
+// "'-1 mm'" for unit strings, "-1" for numbers.
+std::string written(const Node& n) {
+  return n.dimension.empty() ? describe(n) : "'" + n.text + "'";
+}
+
+// The bound a number breaks: "> 0 m", ">= 0", "<= 1".
+std::string violated_bound(const Node& n, const ojson& s) {
+  const double x = n.number();
+  const auto kinds = unit_kinds(s);
+  const std::string unit = kinds.size() == 1 ? " " + std::string(kinds[0]->si) : "";
+  const auto bound = [&](const char* word, const char* op, auto broken) -> std::string {
+    const ojson* b = keyword(s, word);
+    return b && broken(x, b->get<double>())
+               ? std::string(op) + " " + format_number(b->get<double>()) + unit
+               : "";
+  };
+  for (const std::string& b :
+       {bound("exclusiveMinimum", ">", [](double v, double m) { return !(v > m); }),
+        bound("minimum", ">=", [](double v, double m) { return !(v >= m); }),
+        bound("exclusiveMaximum", "<", [](double v, double m) { return !(v < m); }),
+        bound("maximum", "<=", [](double v, double m) { return !(v <= m); })})
+    if (!b.empty()) return b;
+  return "a value in range";
+}
+
+std::string count_phrase(const ojson& s, const char* min_word, const char* max_word,
+                         const char* noun) {
+  const ojson* n = keyword(s, min_word);
+  const ojson* m = keyword(s, max_word);
+  if (n && m && *n == *m) return "exactly " + n->dump() + " " + noun;
+  if (n && m) return "between " + n->dump() + " and " + m->dump() + " " + noun;
+  if (n) return "at least " + n->dump() + " " + noun;
+  return "at most " + (m ? m->dump() : std::string("?")) + " " + noun;
+}
+
+std::string quoted(const std::string& description) {
+  const auto end = description.rfind('\'');
+  const auto begin = description.rfind('\'', end - 1);
+  return description.substr(begin + 1, end - begin - 1);
+}
+
+class ErrorMapper {
+ public:
+  ErrorMapper(const Node& root, Diagnostics& diags) : root_(root), diags_(diags) {}
+
+  void map(const valijson::ValidationResults::Error& error) {
+    const Located at = locate(root_, error.context);
+    if (!at.node || at.quiet) return;
+    const std::string& d = error.description;
+    if (d.starts_with("Object contains a property")) return unknown_key(at, quoted(d));
+    if (d.starts_with("Missing required property")) return missing_key(at, quoted(d));
+    if (!at.schema || is_cascade(d) || !value_errors_.insert(at.node).second) return;
+    diags_.error(*at.node, value_message(*at.node, *at.schema, d));
+  }
+
+ private:
+  // valijson reports a failed child again at each enclosing level.
+  static bool is_cascade(const std::string& d) {
+    return d.starts_with("Failed to validate item") ||
+           d.starts_with("Failed to validate against") || d.starts_with("Cannot validate item");
+  }
+
+  void unknown_key(const Located& at, const std::string& key) {
+    const Entry* e = at.node->entry(key);
+    if (!e || e->value.reported) return;
+    const std::vector<std::string> allowed =
+        at.schema ? property_names(*at.schema) : std::vector<std::string>{};
+    std::string message = "unknown key '" + key + "'";
+    const std::string guess = did_you_mean(key, allowed);
+    message += guess.empty() ? ", expected " + one_of(allowed) : guess;
+    diags_.error(e->key_mark, child_path(*at.node, key), message);
+  }
+
+  void missing_key(const Located& at, const std::string& key) {
+    const ojson* sub = at.schema ? property_schema(*at.schema, key) : nullptr;
+    diags_.error(
+        at.node->mark, child_path(*at.node, key),
+        "missing required key '" + key + "'" + (sub ? ", expected " + expected(*sub) : ""));
+  }
+
+  static std::string value_message(const Node& n, const ojson& s, const std::string& d) {
+    if (d.starts_with("Value type not permitted") || d.starts_with("Failed to match regex"))
+      return "got " + describe(n) + ", expected " + expected(s);
+    if (d.starts_with("Failed to match against any enum")) {
+      const ojson& values = *keyword(s, "enum");
+      std::vector<std::string> names;
+      for (const ojson& v : values) names.push_back(v.get<std::string>());
+      const std::string guess = n.is_string() ? did_you_mean(n.string(), names) : "";
+      return "got " + describe(n) + ", expected one of " + enum_words(values) + guess;
+    }
+    if (d.starts_with("Expected number"))
+      return written(n) + " is out of range, expected " + violated_bound(n, s);
+    if (d.starts_with("Array should contain"))
+      return "got " + describe(n) + ", expected " +
+             count_phrase(s, "minItems", "maxItems", "items");
+    if (d.starts_with("Object should have")) return one_key_message(n, s);
+    if (d.starts_with("Failed to match expected value set by 'const'"))
+      return "got " + describe(n) + ", expected " + keyword(s, "const")->dump();
+    if (d.starts_with("String should be no fewer")) return "got an empty string, expected a name";
+    return d;
+  }
+
+  // Objects that hold exactly one of several alternatives (geometry, size).
+  static std::string one_key_message(const Node& n, const ojson& s) {
+    std::vector<std::string> given;
+    for (const Entry& e : n.entries) given.push_back(e.key);
+    const ojson* m = keyword(s, "maxProperties");
+    const std::string wanted =
+        (m && *m == 1 ? "exactly one of " : "at least one of ") + one_of(property_names(s));
+    if (given.empty()) return "empty, expected " + wanted;
+    return "got " + std::to_string(given.size()) + " (" + one_of(given, "and") + "), expected " +
+           wanted;
+  }
+
+  const Node& root_;
+  Diagnostics& diags_;
+  std::set<const Node*> value_errors_;  // one value complaint per node is enough
+};
+
+}  // namespace
+
+const ojson* keyword(const ojson& s, std::string_view name) {
+  if (!s.is_object()) return nullptr;
+  const std::string key(name);
+  if (const auto it = s.find(key); it != s.end()) return &*it;
+  if (const auto it = s.find("$ref"); it != s.end())
+    if (const ojson* k = keyword(dereference(*it), name)) return k;
+  if (const auto it = s.find("allOf"); it != s.end())
+    for (const ojson& sub : *it)
+      if (const ojson* k = keyword(sub, name)) return k;
+  return nullptr;
+}
+
+void walk_schema(Node& root, const std::function<void(Node&, const ojson*)>& visit) {
+  walk(root, &schema(), visit);
+}
+
+void apply_defaults(Node& root) { walk_schema(root, add_defaults); }
+
+void convert_units(Node& root, Diagnostics& diags) {
+  walk_schema(root, [&](Node& n, const ojson* s) { convert_quantity(n, s, diags); });
+}
+
+void validate(const Node& root, Diagnostics& diags) {
+  const nlohmann::json document = to_json(root);
+  valijson::Validator validator(valijson::Validator::kStrongTypes);
+  valijson::ValidationResults results;
+  validator.validate(compiled_schema(), valijson::adapters::NlohmannJsonAdapter(document),
+                     &results);
+  ErrorMapper mapper(root, diags);
+  for (const auto& error : results) mapper.map(error);
+}
+
+}  // namespace ces::scene
