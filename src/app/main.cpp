@@ -1,29 +1,189 @@
-// Minimal ces-sim until the scene loader lands: drops spheres on a turning
-// drum and prints per-step solver statistics.
+// ces-sim: the command line.
+//
+//   ces-sim SCENE [-o DIR] [--set key.path=value]... [--seed N] [--threads N] [--quiet]
+//   ces-sim validate SCENE [--set ...]
+//   ces-sim schema
+//   ces-sim compare DIR_A DIR_B [--tol-count N] [--tol-mass F] [--tol-w1 MM]
+//   ces-sim --version
+//
+// Exit codes (also in --help):
+//   0  success; compare: the folders agree
+//   1  compare: the folders differ
+//   2  bad input: scene diagnostics (one per line on stderr), bad arguments,
+//      a folder to compare that lacks its tables
+//   3  the run failed or was interrupted; outputs so far are kept and
+//      summary.json says complete: false and why
+//   4  internal error
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
 #include <cstdio>
-#include <memory>
+#include <iostream>
+#include <optional>
+#include <string>
+#include <vector>
 
-#include "dynamics/world.hpp"
+#include "output/compare.hpp"
+#include "output/files.hpp"
+#include "scene/scene.hpp"
+#include "sim/run.hpp"
 
-int main() {
-  using namespace ces;
-  auto m = std::make_shared<Model>();
-  m->materials = MaterialTable({{"steel", 7800, 0.5, 0}, {"copper", 8960, 0.3, 0}}, {});
-  m->shapes.push_back(make_particle_shape({Vec3::Zero()}, {1.0}));
-  RigidBody drum;
-  drum.name = "drum";
-  drum.kind = BodyKind::Kinematic;
-  drum.shape = geo::Cylinder{0.16, 0.15, 0.0};
-  drum.motion.angular_speed = -44.8 * 2 * kPi / 60;
-  m->bodies.push_back(drum);
-  World w(m);
-  for (int i = 0; i < 200; ++i)
-    w.add_particle(0, 0.0005, 1, Vec3(-0.05 + 0.0011 * (i % 40), 0.17 + 0.0011 * (i / 40), 0.0));
-  for (int s = 0; s < 500; ++s) {
-    const StepStats& st = w.step();
-    if (st.step % 100 == 0)
-      std::printf("t=%.3f s contacts=%zu iterations=%d residual=%.2e\n", st.time, st.contacts,
-                  st.solver.iterations, st.solver.residual);
+namespace {
+
+constexpr int kSuccess = 0, kMismatch = 1, kBadInput = 2, kRunFailed = 3, kInternalError = 4;
+
+constexpr const char* kExitCodes =
+    "Exit codes:\n"
+    "  0  success; compare: the folders agree\n"
+    "  1  compare: the folders differ\n"
+    "  2  bad input (scene diagnostics on stderr, one per line; bad arguments)\n"
+    "  3  run failed or interrupted (partial outputs kept, summary.json complete: false)\n"
+    "  4  internal error\n";
+
+// A command-line mistake the parser cannot see (a --set without '=').
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct Args {
+  std::string scene;
+  std::string out_dir;
+  std::vector<std::string> sets;
+  std::optional<std::uint64_t> seed;
+  std::optional<int> threads;
+  bool quiet = false;
+  std::string dir_a, dir_b;
+  ces::output::CompareOptions tolerances;
+};
+
+void add_scene_options(CLI::App& app, Args& args) {
+  app.add_option("--set", args.sets, "Override a scene value before validation: key.path=value")
+      ->type_name("K=V");
+  app.add_option("--seed", args.seed, "Random seed (wins over the scene's)");
+  app.add_option("--threads", args.threads, "Worker threads")->check(CLI::PositiveNumber);
+}
+
+ces::scene::LoadOptions load_options(const Args& args) {
+  ces::scene::LoadOptions o;
+  for (const std::string& s : args.sets) {
+    const auto eq = s.find('=');
+    if (eq == std::string::npos || eq == 0)
+      throw UsageError("--set " + s + ": expected key.path=value");
+    o.overrides.emplace_back(s.substr(0, eq), s.substr(eq + 1));
   }
-  return 0;
+  o.seed = args.seed;
+  o.threads = args.threads;
+  return o;
+}
+
+int run_scene(const Args& args) {
+  const ces::Simulation sim = ces::scene::load(args.scene, load_options(args));
+  ces::RunOptions options;
+  options.out_dir = args.out_dir;
+  options.quiet = args.quiet;
+  options.progress = !args.quiet && ::isatty(::fileno(stderr));
+  const ces::RunResult result = ces::run(sim, options);
+  if (result.complete) return kSuccess;
+  std::fprintf(stderr, "ces-sim: run incomplete: %s\nces-sim: partial outputs in %s\n",
+               result.reason.c_str(), result.out_dir.c_str());
+  return kRunFailed;
+}
+
+int validate(const Args& args) {
+  ces::scene::load(args.scene, load_options(args));
+  std::printf("OK: %s\n", args.scene.c_str());
+  return kSuccess;
+}
+
+int compare(const Args& args) {
+  const ces::output::CompareResult r =
+      ces::output::compare_outputs(args.dir_a, args.dir_b, args.tolerances);
+  constexpr std::size_t kShown = 50;
+  for (std::size_t i = 0; i < r.differences.size() && i < kShown; ++i)
+    std::printf("%s\n", r.differences[i].c_str());
+  if (r.differences.size() > kShown)
+    std::printf("... and %zu more differences\n", r.differences.size() - kShown);
+  if (!r.agree()) {
+    std::printf("DIFFER: %zu differences between %s and %s\n", r.differences.size(),
+                args.dir_a.c_str(), args.dir_b.c_str());
+    return kMismatch;
+  }
+  for (const std::string& note : r.notes) std::printf("%s\n", note.c_str());
+  std::printf("AGREE: %s and %s\n", args.dir_a.c_str(), args.dir_b.c_str());
+  return kSuccess;
+}
+
+// Runs the chosen command; maps failures to the documented exit codes.
+int dispatch(const CLI::App& app, const CLI::App* validate_cmd, const CLI::App* schema_cmd,
+             const CLI::App* compare_cmd, const Args& args) {
+  try {
+    if (validate_cmd->parsed()) return validate(args);
+    if (schema_cmd->parsed()) {
+      std::fputs(ces::scene::schema_text().c_str(), stdout);
+      return kSuccess;
+    }
+    if (compare_cmd->parsed()) return compare(args);
+    if (args.scene.empty()) {
+      std::cerr << app.help();
+      return kBadInput;
+    }
+    return run_scene(args);
+  } catch (const ces::scene::SceneError& e) {
+    for (const ces::scene::Diagnostic& d : e.diagnostics())
+      std::fprintf(stderr, "%s\n", d.str().c_str());
+    return kBadInput;
+  } catch (const UsageError& e) {
+    std::fprintf(stderr, "ces-sim: %s\n", e.what());
+    return kBadInput;
+  } catch (const ces::output::IoError& e) {
+    std::fprintf(stderr, "ces-sim: %s\n", e.what());
+    return compare_cmd->parsed() ? kBadInput : kRunFailed;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "ces-sim: internal error: %s\n", e.what());
+    return kInternalError;
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  CLI::App app{"ces-sim: granular flow in corona electrostatic separators (DVI multibody)"};
+  app.set_version_flag("--version", std::string("ces-sim ") + CES_VERSION);
+  app.footer(kExitCodes);
+  app.add_option("scene", args.scene, "Scene file (.yaml or .json)");
+  app.add_option("-o,--out", args.out_dir, "Output folder (default: the scene's output.dir)");
+  add_scene_options(app, args);
+  app.add_flag("-q,--quiet", args.quiet, "No progress line and no end-of-run report");
+
+  CLI::App* validate_cmd =
+      app.add_subcommand("validate", "Check a scene; print OK or every problem");
+  validate_cmd->add_option("scene", args.scene, "Scene file")->required();
+  add_scene_options(*validate_cmd, args);
+
+  CLI::App* schema_cmd = app.add_subcommand("schema", "Print the scene JSON Schema");
+
+  CLI::App* compare_cmd =
+      app.add_subcommand("compare", "Do two output folders agree within tolerances?");
+  compare_cmd->add_option("dir_a", args.dir_a, "Output folder A")->required();
+  compare_cmd->add_option("dir_b", args.dir_b, "Output folder B")->required();
+  compare_cmd->add_option("--tol-count", args.tolerances.tol_count,
+                          "Particles a bin or product may differ by (default 0)");
+  compare_cmd
+      ->add_option("--tol-mass", args.tolerances.tol_mass,
+                   "Mass difference per cell as a fraction of the material's collected mass; "
+                   "also the absolute tolerance on grade and recovery (default 0)")
+      ->check(CLI::NonNegativeNumber);
+  compare_cmd
+      ->add_option("--tol-w1", args.tolerances.tol_w1_mm,
+                   "Wasserstein-1 distance (mm) between landing distributions (default 0)")
+      ->check(CLI::NonNegativeNumber);
+  app.require_subcommand(0, 1);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? kSuccess : kBadInput;
+  }
+  return dispatch(app, validate_cmd, schema_cmd, compare_cmd, args);
 }

@@ -1,0 +1,214 @@
+#include "feed/feeder.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace ces::feed {
+namespace {
+
+std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+std::uint64_t fnv1a(std::string_view text) {
+  std::uint64_t h = 0xCBF29CE484222325ull;
+  for (const char c : text) {
+    h ^= std::uint8_t(c);
+    h *= 0x100000001B3ull;
+  }
+  return h;
+}
+
+const ParticleShape& shape_of(const Model& model, const FeedComponent& c) {
+  return model.shapes.at(std::size_t(c.shape));
+}
+
+// Do two (possibly clustered) particles share any volume?
+bool clusters_overlap(const ParticleShape& a, double scale_a, const Vec3& xa, const Quat& qa,
+                      const ParticleShape& b, double scale_b, const Vec3& xb, const Quat& qb) {
+  for (std::size_t i = 0; i < a.centers.size(); ++i) {
+    const Vec3 ca = xa + qa * (scale_a * a.centers[i]);
+    for (std::size_t j = 0; j < b.centers.size(); ++j) {
+      const Vec3 cb = xb + qb * (scale_b * b.centers[j]);
+      const double reach = scale_a * a.radii[i] + scale_b * b.radii[j];
+      if ((ca - cb).squaredNorm() < reach * reach) return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+std::uint64_t stream_seed(std::uint64_t scene_seed, std::string_view feed_name) {
+  return splitmix64(scene_seed ^ splitmix64(fnv1a(feed_name)));
+}
+
+output::Tally FeedStats::total() const {
+  output::Tally t;
+  for (const output::Tally& c : fed) t += c;
+  return t;
+}
+
+Feeder::Feeder(const Feed& feed, std::uint64_t scene_seed, const Model& model)
+    : feed_(feed), model_(&model), rng_(stream_seed(scene_seed, feed.name)) {
+  if (feed_.mix.empty()) throw std::invalid_argument("feed '" + feed_.name + "' has no mix");
+  stats_.fed.resize(feed_.mix.size());
+  for (const FeedComponent& c : feed_.mix) {
+    const double largest = c.size.quantile_by_number(1.0) / c.shape_size;
+    max_bounding_radius_ =
+        std::max(max_bounding_radius_, largest * shape_of(model, c).bounding_radius);
+  }
+}
+
+double Feeder::target(double t) const {
+  const double elapsed = std::clamp(t - feed_.start, 0.0, feed_.duration);
+  return (feed_.mass_rate > 0.0 ? feed_.mass_rate : feed_.count_rate) * elapsed;
+}
+
+double Feeder::fed_amount() const {
+  const output::Tally t = stats_.total();
+  return feed_.mass_rate > 0.0 ? t.kg() : double(t.count);
+}
+
+void Feeder::operator()(World& world) {
+  const double goal = target(world.time() + model_->step);
+  neighbours_valid_ = false;
+  while (fed_amount() < goal) {
+    if (!pending_) pending_ = draw_candidate();
+    const double amount = feed_.mass_rate > 0.0 ? pending_->mass : 1.0;
+    // Add the particle only if that brings the fed amount closer to the goal.
+    if (fed_amount() + 0.5 * amount > goal) return;
+    if (!place(world, *pending_)) {
+      ++stats_.deferrals;
+      return;
+    }
+    pending_.reset();
+  }
+}
+
+int Feeder::choose_component() const {
+  const double total = stats_.total().kg();
+  int best = 0;
+  double best_deficit = -std::numeric_limits<double>::infinity();
+  for (std::size_t c = 0; c < feed_.mix.size(); ++c) {
+    const double fraction = feed_.mix[c].mass_fraction;
+    const double deficit = fraction * total - stats_.fed[c].kg();
+    // Ties (the first particle) go to the largest fraction, then the first listed.
+    if (deficit > best_deficit ||
+        (deficit == best_deficit && fraction > feed_.mix[std::size_t(best)].mass_fraction)) {
+      best = int(c);
+      best_deficit = deficit;
+    }
+  }
+  return best;
+}
+
+Feeder::Candidate Feeder::draw_candidate() {
+  Candidate c;
+  c.component = choose_component();
+  const FeedComponent& comp = feed_.mix[std::size_t(c.component)];
+  const double diameter = comp.size.sample(rng_);
+  c.scale = diameter / comp.shape_size;
+  const ParticleShape& shape = shape_of(*model_, comp);
+  const double density = model_->materials.materials().at(std::size_t(comp.material)).density;
+  c.mass = density * shape.volume * c.scale * c.scale * c.scale;  // as World::add_particle
+  if (!(std::isfinite(c.mass) && c.mass > 0.0))
+    throw std::runtime_error("feed '" + feed_.name + "': a particle of diameter " +
+                             std::to_string(diameter) + " m has mass " + std::to_string(c.mass) +
+                             " kg (check its size distribution, shape size and density)");
+  const double radius = c.scale * shape.bounding_radius;
+  if (radius > max_bounding_radius_) {
+    max_bounding_radius_ = radius;
+    neighbours_valid_ = false;
+  }
+  return c;
+}
+
+bool Feeder::place(World& world, const Candidate& c) {
+  if (!neighbours_valid_) find_neighbours(world);
+  const FeedComponent& comp = feed_.mix[std::size_t(c.component)];
+  const geo::Aabb& region = feed_.region;
+  for (int attempt = 0; attempt < feed_.max_attempts; ++attempt) {
+    Vec3 x;
+    for (int k = 0; k < 3; ++k) x[k] = region.min[k] + uniform() * (region.max[k] - region.min[k]);
+    const Quat q = feed_.random_orientation ? random_orientation() : Quat::Identity();
+    if (overlaps_bodies(world, c, x, q) || overlaps_particles(world, c, x, q)) {
+      ++stats_.retries;
+      continue;
+    }
+    Vec3 v = feed_.velocity;
+    if (feed_.velocity_spread > 0.0)
+      for (int k = 0; k < 3; ++k) v[k] += feed_.velocity_spread * (2.0 * uniform() - 1.0);
+    world.add_particle(comp.shape, c.scale, comp.material, x, q, v);
+    const Particles& p = world.particles();
+    neighbours_.push_back(p.size() - 1);
+    stats_.fed[std::size_t(c.component)].add(output::to_mass_units(p.mass.back()));
+    return true;
+  }
+  return false;
+}
+
+bool Feeder::overlaps_bodies(const World& world, const Candidate& c, const Vec3& x, const Quat& q) {
+  const ParticleShape& s = shape_of(*model_, feed_.mix[std::size_t(c.component)]);
+  for (std::size_t k = 0; k < model_->bodies.size(); ++k) {
+    const Pose& pose = world.bodies().pose[k];
+    for (std::size_t j = 0; j < s.centers.size(); ++j) {
+      const double r = c.scale * s.radii[j];
+      hits_.clear();
+      geo::query(model_->bodies[k].shape, pose.inverse_apply(x + q * (c.scale * s.centers[j])), r,
+                 hits_);
+      for (const geo::SurfaceHit& hit : hits_)
+        if (hit.distance < r) return true;
+    }
+  }
+  return false;
+}
+
+bool Feeder::overlaps_particles(const World& world, const Candidate& c, const Vec3& x,
+                                const Quat& q) const {
+  const ParticleShape& s = shape_of(*model_, feed_.mix[std::size_t(c.component)]);
+  const double radius = c.scale * s.bounding_radius;
+  const Particles& p = world.particles();
+  for (const std::size_t i : neighbours_) {
+    const ParticleShape& o = model_->shapes[std::size_t(p.shape[i])];
+    const double reach = radius + p.scale[i] * o.bounding_radius;
+    if ((p.position[i] - x).squaredNorm() >= reach * reach) continue;
+    if (clusters_overlap(s, c.scale, x, q, o, p.scale[i], p.position[i], p.orientation[i]))
+      return true;
+  }
+  return false;
+}
+
+// Candidates for contact with a new particle: within reach of the region.
+void Feeder::find_neighbours(const World& world) {
+  neighbours_.clear();
+  const Particles& p = world.particles();
+  const geo::Aabb& region = feed_.region;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const double reach =
+        max_bounding_radius_ + p.scale[i] * model_->shapes[std::size_t(p.shape[i])].bounding_radius;
+    const Vec3 outside =
+        (region.min - p.position[i]).cwiseMax(p.position[i] - region.max).cwiseMax(0.0);
+    if (outside.squaredNorm() <= reach * reach) neighbours_.push_back(i);
+  }
+  neighbours_valid_ = true;
+}
+
+// 53 random bits from the raw engine: the same numbers with every standard
+// library, unlike std::uniform_real_distribution.
+double Feeder::uniform() { return double(rng_() >> 11) * 0x1.0p-53; }
+
+// Shoemake's uniform random rotation.
+Quat Feeder::random_orientation() {
+  const double u1 = uniform(), u2 = 2.0 * kPi * uniform(), u3 = 2.0 * kPi * uniform();
+  const double a = std::sqrt(1.0 - u1), b = std::sqrt(u1);
+  return Quat(b * std::cos(u3), a * std::sin(u2), a * std::cos(u2), b * std::sin(u3));
+}
+
+}  // namespace ces::feed

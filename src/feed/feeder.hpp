@@ -1,0 +1,83 @@
+// A feeder: the pre-step hook that adds a feed's particles to the World.
+//
+// Rate: the fed amount (mass or count) tracks rate * elapsed time; a particle
+// is added while doing so brings the fed amount closer to the target, so the
+// fed amount stays within half a particle of it and the fractional particle
+// carries over to the next step.
+// Mix: each particle's component is the one whose fed mass is furthest below
+// its share of the total, so the fed mass fractions converge to the mix
+// fractions without randomness.
+// Placement: uniform in the region with a uniform random orientation, free of
+// machine bodies (at their pose now) and of particles; after max_attempts
+// failures the particle waits for the next step (a deferral).
+// Randomness: one std::mt19937_64 per feed, seeded from (scene seed, feed
+// name), so adding or changing a feed never changes another feed's stream.
+#pragma once
+#include <cstdint>
+#include <optional>
+#include <random>
+#include <string_view>
+#include <vector>
+
+#include "dynamics/world.hpp"
+#include "geometry/shapes.hpp"
+#include "output/tally.hpp"
+#include "sim/simulation.hpp"
+
+namespace ces::feed {
+
+// splitmix64(seed ^ splitmix64(FNV-1a 64 of the name)): fixed across
+// platforms and standard libraries.
+std::uint64_t stream_seed(std::uint64_t scene_seed, std::string_view feed_name);
+
+struct FeedStats {
+  std::vector<output::Tally> fed;  // per mix component
+  std::uint64_t retries = 0;       // placement attempts that overlapped something
+  std::uint64_t deferrals = 0;     // particles moved to a later step
+  output::Tally total() const;
+};
+
+class Feeder {
+ public:
+  Feeder(const Feed& feed, std::uint64_t scene_seed, const Model& model);
+
+  // The pre-step hook: feeds the step that starts at world.time().
+  void operator()(World& world);
+
+  const Feed& feed() const { return feed_; }
+  const FeedStats& stats() const { return stats_; }
+  // What rate * elapsed asks for by time t: kg for mass-rate feeds, particles
+  // for count-rate feeds.
+  double target(double t) const;
+  // The fed amount in the same unit as target().
+  double fed_amount() const;
+
+ private:
+  struct Candidate {
+    int component = 0;
+    double scale = 1.0;
+    double mass = 0.0;
+  };
+
+  Candidate draw_candidate();
+  int choose_component() const;
+  bool place(World& world, const Candidate& c);
+  bool overlaps_bodies(const World& world, const Candidate& c, const Vec3& x, const Quat& q);
+  bool overlaps_particles(const World& world, const Candidate& c, const Vec3& x,
+                          const Quat& q) const;
+  void find_neighbours(const World& world);
+  double uniform();
+  Quat random_orientation();
+
+  Feed feed_;
+  const Model* model_;
+  std::mt19937_64 rng_;
+  FeedStats stats_;
+  std::optional<Candidate> pending_;     // drawn but not yet placed
+  double max_bounding_radius_ = 0.0;     // of any particle this feed can draw
+  std::vector<std::size_t> neighbours_;  // particles that may touch the region
+  bool neighbours_valid_ = false;        // found this step
+  std::vector<geo::SurfaceHit> hits_;    // scratch for body queries
+};
+
+}  // namespace ces::feed

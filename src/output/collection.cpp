@@ -1,0 +1,163 @@
+#include "output/collection.hpp"
+
+#include <algorithm>
+
+namespace ces::output {
+namespace {
+
+bool finite_state(const Particles& p, std::size_t i) {
+  return p.position[i].allFinite() && p.velocity[i].allFinite() &&
+         p.angular_velocity[i].allFinite() && p.orientation[i].coeffs().allFinite();
+}
+
+bool contains(const geo::Aabb& box, const Vec3& x) {
+  return (x.array() >= box.min.array()).all() && (x.array() <= box.max.array()).all();
+}
+
+template <class Record>
+void sort_by_time_and_id(std::vector<Record>& records) {
+  std::sort(records.begin(), records.end(), [](const Record& a, const Record& b) {
+    return a.time != b.time ? a.time < b.time : a.id < b.id;
+  });
+}
+
+// Bin index of `along`, or -1 outside [from, to).
+int bin_of(const Collector& c, double along) {
+  if (!(along >= c.from && along < c.to)) return -1;
+  return std::min(int((along - c.from) / (c.to - c.from) * c.bins), c.bins - 1);
+}
+
+int product_of(const Collector& c, double along) {
+  for (std::size_t k = 0; k < c.products.size(); ++k)
+    if (along >= c.products[k].from && along < c.products[k].to) return int(k);
+  return -1;
+}
+
+}  // namespace
+
+std::string_view to_string(LossReason r) {
+  return r == LossReason::LeftDomain ? "left domain" : "non-finite state";
+}
+
+std::vector<double> shape_sizes(const Simulation& sim) {
+  const std::vector<ParticleShape>& shapes = sim.model->shapes;
+  std::vector<double> size(shapes.size(), 0.0);
+  for (const Feed& f : sim.feeds)
+    for (const FeedComponent& c : f.mix)
+      if (size.at(std::size_t(c.shape)) == 0.0) size[std::size_t(c.shape)] = c.shape_size;
+  for (std::size_t s = 0; s < shapes.size(); ++s)
+    if (size[s] == 0.0) size[s] = 2.0 * shapes[s].bounding_radius;
+  return size;
+}
+
+Collection::Collection(const Simulation& sim, std::vector<double> shape_size)
+    : sim_(&sim),
+      shape_size_(std::move(shape_size)),
+      materials_(sim.model->materials.materials().size()) {
+  for (const Collector& c : sim.collectors) {
+    axes_.push_back(c.axis.normalized());
+    CollectorTallies t;
+    t.bins.resize(std::size_t(c.bins) * materials_);
+    t.products.resize(c.products.size() * materials_);
+    t.outside.resize(materials_);
+    t.total.resize(materials_);
+    tallies_.push_back(std::move(t));
+  }
+  for (std::vector<Tally>& l : lost_) l.resize(materials_);
+}
+
+double Collection::diameter(const Particles& p, std::size_t i) const {
+  return p.scale[i] * shape_size_[std::size_t(p.shape[i])];
+}
+
+void Collection::operator()(World& world) {
+  Particles& p = world.particles();
+  const double h = world.model().step, t_end = world.time();
+  // Backwards: swap_remove moves the last particle, already visited, into i.
+  for (std::size_t i = p.size(); i-- > 0;)
+    if (leaves(p, i, t_end, h)) world.remove_particle(i);
+}
+
+bool Collection::leaves(const Particles& p, std::size_t i, double t_end, double h) {
+  if (!finite_state(p, i)) {
+    lose(p, i, t_end, LossReason::NonFinite);
+    return true;
+  }
+  if (try_collect(p, i, t_end, h)) return true;
+  if (sim_->domain && !contains(*sim_->domain, p.position[i])) {
+    lose(p, i, t_end, LossReason::LeftDomain);
+    return true;
+  }
+  return false;
+}
+
+// The step moved the centre along a straight segment (positions advance by
+// h * v, the new velocity), so the crossing point and time are exact.
+bool Collection::try_collect(const Particles& p, std::size_t i, double t_end, double h) {
+  const Vec3 travel = h * p.velocity[i];
+  const Vec3 x1 = p.position[i];
+  const Vec3 x0 = x1 - travel;
+  int hit = -1;
+  double hit_fraction = 2.0;
+  for (std::size_t k = 0; k < sim_->collectors.size(); ++k) {
+    const Collector& c = sim_->collectors[k];
+    const double d0 = c.normal.dot(x0 - c.point), d1 = c.normal.dot(x1 - c.point);
+    if (!(d0 > 0.0 && d1 <= 0.0)) continue;
+    const double fraction = d0 / (d0 - d1);
+    if (fraction < hit_fraction) {
+      hit = int(k);
+      hit_fraction = fraction;
+    }
+  }
+  if (hit < 0) return false;
+  const Collector& c = sim_->collectors[std::size_t(hit)];
+  Crossing k;
+  k.id = p.id[i];
+  k.time = t_end - (1.0 - hit_fraction) * h;
+  k.position = x0 + hit_fraction * travel;
+  k.velocity = p.velocity[i];
+  k.along = axes_[std::size_t(hit)].dot(k.position);
+  k.diameter = diameter(p, i);
+  k.mass = p.mass[i];
+  k.charge = p.charge[i];
+  k.material = p.material[i];
+  k.collector = hit;
+  k.bin = bin_of(c, k.along);
+  k.product = product_of(c, k.along);
+  tally_crossing(k);
+  crossings_.push_back(k);
+  return true;
+}
+
+void Collection::tally_crossing(const Crossing& c) {
+  CollectorTallies& t = tallies_[std::size_t(c.collector)];
+  const MassUnits m = to_mass_units(c.mass);
+  const auto m_index = std::size_t(c.material);
+  t.total[m_index].add(m);
+  if (c.bin >= 0)
+    t.bins[std::size_t(c.bin) * materials_ + m_index].add(m);
+  else
+    t.outside[m_index].add(m);
+  if (c.product >= 0) t.products[std::size_t(c.product) * materials_ + m_index].add(m);
+}
+
+void Collection::lose(const Particles& p, std::size_t i, double t_end, LossReason reason) {
+  Loss l;
+  l.id = p.id[i];
+  l.time = t_end;
+  l.position = p.position[i];
+  l.velocity = p.velocity[i];
+  l.diameter = diameter(p, i);
+  l.mass = p.mass[i];
+  l.material = p.material[i];
+  l.reason = reason;
+  lost_[std::size_t(reason)][std::size_t(l.material)].add(to_mass_units(l.mass));
+  losses_.push_back(l);
+}
+
+void Collection::sort_records() {
+  sort_by_time_and_id(crossings_);
+  sort_by_time_and_id(losses_);
+}
+
+}  // namespace ces::output

@@ -1,0 +1,93 @@
+// Where particles leave a run: the post-step hook that collects particles
+// crossing collector planes, and removes those that left the domain or whose
+// state stopped being finite (lost, with the reason). Keeps the exact tallies
+// behind bins.csv, products.csv and the summary's balance.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <string_view>
+#include <vector>
+
+#include "dynamics/world.hpp"
+#include "output/tally.hpp"
+#include "sim/simulation.hpp"
+
+namespace ces::output {
+
+struct Crossing {
+  std::uint64_t id = 0;
+  double time = 0.0;  // when the centre crossed the plane (s)
+  Vec3 position;      // where it crossed
+  Vec3 velocity;
+  double along = 0.0;  // coordinate along the collector axis (m)
+  double diameter = 0.0;
+  double mass = 0.0;
+  double charge = 0.0;  // C
+  int material = 0;
+  int collector = 0;
+  int bin = -1;      // -1: outside the collector's bins
+  int product = -1;  // -1: in no product
+};
+
+enum class LossReason { LeftDomain, NonFinite };
+inline constexpr std::array<LossReason, 2> kLossReasons = {LossReason::LeftDomain,
+                                                           LossReason::NonFinite};
+std::string_view to_string(LossReason r);
+
+struct Loss {
+  std::uint64_t id = 0;
+  double time = 0.0;
+  Vec3 position, velocity;
+  double diameter = 0.0;
+  double mass = 0.0;
+  int material = 0;
+  LossReason reason = LossReason::LeftDomain;
+};
+
+// Tallies of one collector, each indexed [slot * materials + material].
+struct CollectorTallies {
+  std::vector<Tally> bins;      // slot = bin
+  std::vector<Tally> products;  // slot = product
+  std::vector<Tally> outside;   // crossed outside the bins; slot = 0
+  std::vector<Tally> total;     // everything collected; slot = 0
+};
+
+class Collection {
+ public:
+  // shape_size[s]: the diameter of Model shape s at scale 1 (m).
+  Collection(const Simulation& sim, std::vector<double> shape_size);
+
+  // The post-step hook.
+  void operator()(World& world);
+
+  double diameter(const Particles& p, std::size_t i) const;
+  std::size_t material_count() const { return materials_; }
+  const std::vector<CollectorTallies>& collectors() const { return tallies_; }
+  const std::vector<Tally>& lost(LossReason r) const { return lost_[std::size_t(r)]; }
+
+  // Sorted by (time, id) after sort_records().
+  const std::vector<Crossing>& crossings() const { return crossings_; }
+  const std::vector<Loss>& losses() const { return losses_; }
+  void sort_records();
+
+ private:
+  bool leaves(const Particles& p, std::size_t i, double t_end, double h);
+  bool try_collect(const Particles& p, std::size_t i, double t_end, double h);
+  void lose(const Particles& p, std::size_t i, double t_end, LossReason reason);
+  void tally_crossing(const Crossing& c);
+
+  const Simulation* sim_;
+  std::vector<double> shape_size_;
+  std::size_t materials_;
+  std::vector<Vec3> axes_;  // unit bin axis per collector
+  std::vector<CollectorTallies> tallies_;
+  std::array<std::vector<Tally>, kLossReasons.size()> lost_;  // per material
+  std::vector<Crossing> crossings_;
+  std::vector<Loss> losses_;
+};
+
+// The diameter of each Model shape at scale 1: taken from the feeds'
+// components (shape_size), else twice the shape's bounding radius.
+std::vector<double> shape_sizes(const Simulation& sim);
+
+}  // namespace ces::output

@@ -1,0 +1,217 @@
+#include "output/compare.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <map>
+
+#include "output/files.hpp"
+#include "output/format.hpp"
+
+namespace ces::output {
+namespace {
+
+struct Table {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+
+  std::size_t column(const std::string& name, const std::filesystem::path& file) const {
+    const auto it = std::find(header.begin(), header.end(), name);
+    if (it == header.end()) throw IoError(file.string() + ": no column '" + name + "'");
+    return std::size_t(it - header.begin());
+  }
+};
+
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> fields(1);
+  for (const char c : line) {
+    if (c == ',')
+      fields.emplace_back();
+    else if (c != '\r')
+      fields.back() += c;
+  }
+  return fields;
+}
+
+Table read_table(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw IoError("cannot read " + file.string());
+  Table t;
+  std::string line;
+  if (!std::getline(in, line)) throw IoError(file.string() + ": empty file");
+  t.header = split(line);
+  for (int n = 2; std::getline(in, line); ++n) {
+    if (line.empty()) continue;
+    t.rows.push_back(split(line));
+    if (t.rows.back().size() != t.header.size())
+      throw IoError(file.string() + ":" + std::to_string(n) + ": expected " +
+                    std::to_string(t.header.size()) + " fields");
+  }
+  return t;
+}
+
+double number(const std::string& s) {
+  double v = std::numeric_limits<double>::quiet_NaN();
+  std::from_chars(s.data(), s.data() + s.size(), v);
+  return v;
+}
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+std::string join(const std::vector<std::string>& v) {
+  std::string s;
+  for (const std::string& x : v) s += (s.empty() ? "" : ",") + x;
+  return s;
+}
+
+// Mass tolerance scale per (collector, column): the larger column total of
+// the collector's rows in either folder.
+using Scales = std::map<std::pair<std::string, std::size_t>, double>;
+
+Scales mass_scales(const Table& a, const Table& b) {
+  Scales sums[2];
+  for (int side = 0; side < 2; ++side)
+    for (const auto& row : (side == 0 ? a : b).rows)
+      for (std::size_t c = 0; c < row.size(); ++c)
+        if (ends_with(a.header[c], "_kg")) sums[side][{row[0], c}] += number(row[c]);
+  for (auto& [key, value] : sums[0]) value = std::max(value, sums[1][key]);
+  return sums[0];
+}
+
+struct CellCheck {
+  const std::string& column;
+  double a, b;
+  double tolerance;
+};
+
+// A difference line, or empty when the cell agrees.
+std::string check_cell(const std::string& where, const CellCheck& c) {
+  const double d = std::abs(c.a - c.b);
+  if (d <= c.tolerance || (std::isnan(c.a) && std::isnan(c.b))) return {};
+  return where + " " + c.column + ": " + format_number(c.a) + " vs " + format_number(c.b) +
+         " (difference " + format_number(d) + " > tolerance " + format_number(c.tolerance) + ")";
+}
+
+std::string compare_cell(const std::string& where, const std::string& column, const std::string& a,
+                         const std::string& b, double mass_scale, const CompareOptions& o) {
+  if (a == b) return {};
+  const double x = number(a), y = number(b);
+  if (column == "from_m" || column == "to_m")
+    return check_cell(where, {column, x, y, 1e-9 * std::max(std::abs(x), std::abs(y))});
+  if (ends_with(column, "_count")) return check_cell(where, {column, x, y, double(o.tol_count)});
+  if (ends_with(column, "_kg")) return check_cell(where, {column, x, y, o.tol_mass * mass_scale});
+  if (column == "grade" || column == "recovery")
+    return check_cell(where, {column, x, y, o.tol_mass});
+  // A product whose two largest masses are close may swap its main material
+  // between runs; with a mass tolerance, the masses themselves decide.
+  if (column == "main_material" && o.tol_mass > 0.0) return {};
+  return where + " " + column + ": " + a + " vs " + b;
+}
+
+// Cell-by-cell comparison of bins.csv or products.csv; the first two
+// columns name the row (collector, bin or product).
+void compare_tables(const std::string& file, const Table& a, const Table& b,
+                    const CompareOptions& o, CompareResult& r) {
+  if (a.header != b.header) {
+    r.differences.push_back(file + ": columns differ: " + join(a.header) + " vs " + join(b.header));
+    return;
+  }
+  if (a.rows.size() != b.rows.size()) {
+    r.differences.push_back(file + ": " + std::to_string(a.rows.size()) + " rows vs " +
+                            std::to_string(b.rows.size()));
+    return;
+  }
+  const Scales scales = mass_scales(a, b);
+  for (std::size_t i = 0; i < a.rows.size(); ++i) {
+    const auto &ra = a.rows[i], &rb = b.rows[i];
+    const std::string where = file + ": " + ra[0] + " " + a.header[1] + " " + ra[1];
+    if (ra[0] != rb[0] || ra[1] != rb[1]) {
+      r.differences.push_back(where + " vs " + rb[0] + " " + rb[1] + ": rows differ");
+      continue;
+    }
+    for (std::size_t c = 2; c < ra.size(); ++c) {
+      const auto scale = scales.find({ra[0], c});
+      std::string d = compare_cell(where, a.header[c], ra[c], rb[c],
+                                   scale == scales.end() ? 0.0 : scale->second, o);
+      if (!d.empty()) r.differences.push_back(std::move(d));
+    }
+  }
+  r.notes.push_back(file + ": " + std::to_string(a.rows.size()) + " rows compared");
+}
+
+// Landing positions and masses per "material at collector".
+using Landings = std::map<std::string, std::vector<std::pair<double, double>>>;
+
+Landings landings(const std::filesystem::path& file) {
+  const Table t = read_table(file);
+  const std::size_t along = t.column("along_m", file), mass = t.column("mass_kg", file),
+                    material = t.column("material", file), collector = t.column("collector", file);
+  Landings out;
+  for (const auto& row : t.rows)
+    out[row[material] + " at " + row[collector]].emplace_back(number(row[along]),
+                                                              number(row[mass]));
+  return out;
+}
+
+void compare_landings(const Landings& a, const Landings& b, const CompareOptions& o,
+                      CompareResult& r) {
+  std::vector<std::string> keys;
+  for (const auto& [k, v] : a) keys.push_back(k);
+  for (const auto& [k, v] : b)
+    if (!a.count(k)) keys.push_back(k);
+  std::sort(keys.begin(), keys.end());
+  for (const std::string& k : keys) {
+    const auto ia = a.find(k), ib = b.find(k);
+    if (ia == a.end() || ib == b.end()) {
+      r.differences.push_back("crossings.csv: " + k + ": collected only in " +
+                              (ia == a.end() ? "B" : "A"));
+      continue;
+    }
+    const double w1 = 1e3 * wasserstein1(ia->second, ib->second);
+    r.notes.push_back("crossings.csv: " + k + ": W1 " + format_number(w1) + " mm");
+    if (w1 > o.tol_w1_mm)
+      r.differences.push_back("crossings.csv: " + k + ": landing distributions differ by W1 " +
+                              format_number(w1) + " mm > tolerance " + format_number(o.tol_w1_mm) +
+                              " mm");
+  }
+}
+
+}  // namespace
+
+double wasserstein1(std::vector<std::pair<double, double>> a,
+                    std::vector<std::pair<double, double>> b) {
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  double wa = 0, wb = 0;
+  for (const auto& p : a) wa += p.second;
+  for (const auto& p : b) wb += p.second;
+  // Integrate |F_a - F_b| between consecutive positions of the merged samples.
+  double fa = 0, fb = 0, distance = 0;
+  std::size_t i = 0, j = 0;
+  double x = std::min(a.empty() ? 0.0 : a[0].first, b.empty() ? 0.0 : b[0].first);
+  while (i < a.size() || j < b.size()) {
+    const double next =
+        std::min(i < a.size() ? a[i].first : b[j].first, j < b.size() ? b[j].first : a[i].first);
+    distance += std::abs(fa - fb) * (next - x);
+    x = next;
+    for (; i < a.size() && a[i].first == next; ++i) fa += a[i].second / wa;
+    for (; j < b.size() && b[j].first == next; ++j) fb += b[j].second / wb;
+  }
+  return distance;
+}
+
+CompareResult compare_outputs(const std::filesystem::path& a, const std::filesystem::path& b,
+                              const CompareOptions& options) {
+  CompareResult r;
+  for (const char* file : {"bins.csv", "products.csv"})
+    compare_tables(file, read_table(a / file), read_table(b / file), options, r);
+  compare_landings(landings(a / "crossings.csv"), landings(b / "crossings.csv"), options, r);
+  return r;
+}
+
+}  // namespace ces::output

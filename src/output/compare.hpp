@@ -1,0 +1,41 @@
+// `ces-sim compare`: do two output folders agree within tolerances?
+//  - bins.csv and products.csv: cell by cell; counts within tol_count
+//    particles; masses within tol_mass times the larger total mass of that
+//    material in that collector (both folders); grade and recovery within
+//    tol_mass (absolute); a product's main material must be the same unless
+//    a mass tolerance is given (then its masses decide);
+//  - crossings.csv: per collector and material, the Wasserstein-1 distance of
+//    the mass-weighted landing positions along the collector axis within
+//    tol_w1_mm.
+// Differences in layout (columns, bins, products) are always differences.
+#pragma once
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace ces::output {
+
+struct CompareOptions {
+  std::uint64_t tol_count = 0;
+  double tol_mass = 0.0;
+  double tol_w1_mm = 0.0;
+};
+
+struct CompareResult {
+  std::vector<std::string> differences;  // one readable line each
+  std::vector<std::string> notes;        // what was compared, e.g. W1 values
+  bool agree() const { return differences.empty(); }
+};
+
+// Throws IoError when a folder lacks a file or a file is not a table.
+CompareResult compare_outputs(const std::filesystem::path& a, const std::filesystem::path& b,
+                              const CompareOptions& options);
+
+// Wasserstein-1 distance between two weighted samples of positions
+// (position, weight); each is normalised to total weight 1.
+double wasserstein1(std::vector<std::pair<double, double>> a,
+                    std::vector<std::pair<double, double>> b);
+
+}  // namespace ces::output

@@ -1,0 +1,69 @@
+#include "output/step_log.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "output/format.hpp"
+
+namespace ces::output {
+namespace {
+
+// Nearest-rank percentile of sorted values.
+double percentile(const std::vector<double>& sorted, double p) {
+  if (sorted.empty()) return 0.0;
+  const auto rank = std::size_t(std::ceil(p * double(sorted.size())));
+  return sorted[std::clamp<std::size_t>(rank, 1, sorted.size()) - 1];
+}
+
+}  // namespace
+
+StepLog::StepLog(const std::filesystem::path& steps_csv, int max_iterations)
+    : max_iterations_(max_iterations) {
+  if (steps_csv.empty()) return;
+  file_ = AtomicFile(steps_csv);
+  file_.write(
+      "step,time_s,particles,contacts,iterations,residual_mps,max_penetration_m,"
+      "max_penetration_rel,wall_s\n");
+}
+
+void StepLog::record(const StepStats& s, double wall_seconds) {
+  ++sum_.steps;
+  if (s.solver.iterations > 0) {
+    ++sum_.solved_steps;
+    iterations_total_ += std::uint64_t(s.solver.iterations);
+    sum_.iterations_max = std::max(sum_.iterations_max, s.solver.iterations);
+    residuals_.push_back(s.solver.residual);
+    if (s.solver.iterations >= max_iterations_ && !s.solver.converged) ++sum_.steps_at_cap;
+  }
+  sum_.max_penetration = std::max(sum_.max_penetration, s.max_penetration);
+  sum_.max_penetration_relative =
+      std::max(sum_.max_penetration_relative, s.max_penetration_relative);
+  sum_.max_joint_drift = std::max(sum_.max_joint_drift, s.joint_drift);
+  sum_.max_particles = std::max(sum_.max_particles, s.particles);
+  sum_.max_contacts = std::max(sum_.max_contacts, s.contacts);
+  sum_.seconds += s.seconds;
+  if (!file_.is_open()) return;
+  std::string text;
+  CsvWriter row(text);
+  row << s.step << s.time << s.particles << s.contacts << s.solver.iterations << s.solver.residual
+      << s.max_penetration << s.max_penetration_relative << wall_seconds;
+  row.end_row();
+  file_.write(text);
+}
+
+SolverSummary StepLog::summary() const {
+  SolverSummary s = sum_;
+  if (s.solved_steps > 0) s.iterations_mean = double(iterations_total_) / double(s.solved_steps);
+  std::vector<double> sorted = residuals_;
+  std::sort(sorted.begin(), sorted.end());
+  s.residual_median = percentile(sorted, 0.5);
+  s.residual_p95 = percentile(sorted, 0.95);
+  s.residual_max = sorted.empty() ? 0.0 : sorted.back();
+  return s;
+}
+
+void StepLog::commit() {
+  if (file_.is_open()) file_.commit();
+}
+
+}  // namespace ces::output

@@ -1,0 +1,49 @@
+// Per-step records: steps.csv, and the solver statistics of the summary
+// (iterations, residual percentiles, steps at the iteration cap, penetration).
+#pragma once
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "dynamics/world.hpp"
+#include "output/files.hpp"
+
+namespace ces::output {
+
+struct SolverSummary {
+  std::uint64_t steps = 0;
+  std::uint64_t solved_steps = 0;  // steps with constraint rows to solve
+  double iterations_mean = 0.0;    // over solved steps
+  int iterations_max = 0;
+  double residual_median = 0.0;  // RMS residual per solved step (m/s)
+  double residual_p95 = 0.0;
+  double residual_max = 0.0;
+  std::uint64_t steps_at_cap = 0;  // stopped at max_iterations, not converged
+  double max_penetration = 0.0;    // m
+  double max_penetration_relative = 0.0;
+  double max_joint_drift = 0.0;  // m
+  std::size_t max_particles = 0;
+  std::size_t max_contacts = 0;
+  StageTimes seconds;  // summed over steps
+};
+
+class StepLog {
+ public:
+  // An empty path: statistics only, no steps.csv.
+  StepLog(const std::filesystem::path& steps_csv, int max_iterations);
+
+  void record(const StepStats& s, double wall_seconds);
+  SolverSummary summary() const;
+  // Publishes steps.csv with every step recorded so far.
+  void commit();
+
+ private:
+  AtomicFile file_;
+  int max_iterations_;
+  SolverSummary sum_;
+  std::uint64_t iterations_total_ = 0;
+  std::vector<double> residuals_;  // solved steps
+};
+
+}  // namespace ces::output

@@ -1,0 +1,260 @@
+#include "output/summary.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include "output/format.hpp"
+
+namespace ces::output {
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+Json tally_json(const Tally& t) { return {{"count", t.count}, {"mass_kg", t.kg()}}; }
+
+const char* method_name(SolverMethod m) {
+  switch (m) {
+    case SolverMethod::APGD:
+      return "apgd";
+    case SolverMethod::SPG:
+      return "spg";
+    case SolverMethod::PGS:
+      return "pgs";
+  }
+  return "?";
+}
+
+// Per Model material: where its particles went.
+struct Fates {
+  std::vector<Tally> collected, lost;
+};
+
+Fates fates(const RunRecord& r) {
+  const std::size_t n = r.fed.size();
+  Fates f{std::vector<Tally>(n), std::vector<Tally>(n)};
+  for (const CollectorTallies& t : r.collection->collectors())
+    for (std::size_t m = 0; m < n; ++m) f.collected[m] += t.total[m];
+  for (const LossReason reason : kLossReasons)
+    for (std::size_t m = 0; m < n; ++m) f.lost[m] += r.collection->lost(reason)[m];
+  return f;
+}
+
+Tally sum(const std::vector<Tally>& v) {
+  Tally t;
+  for (const Tally& x : v) t += x;
+  return t;
+}
+
+bool balanced(const RunRecord& r, const Fates& f) {
+  for (std::size_t m = 0; m < r.fed.size(); ++m)
+    if (!(r.fed[m] == f.collected[m] + f.lost[m] + r.active[m])) return false;
+  return true;
+}
+
+Json balance_json(const RunRecord& r) {
+  const Fates f = fates(r);
+  Json j = {{"fed", tally_json(sum(r.fed))},
+            {"collected", tally_json(sum(f.collected))},
+            {"lost", tally_json(sum(f.lost))},
+            {"active", tally_json(sum(r.active))},
+            {"exact", balanced(r, f)}};
+  Json& materials = j["materials"] = Json::object();
+  for (const int m : r.materials) {
+    const auto i = std::size_t(m);
+    materials[r.sim->model->materials.materials()[i].name] = {
+        {"fed", tally_json(r.fed[i])},
+        {"collected", tally_json(f.collected[i])},
+        {"lost", tally_json(f.lost[i])},
+        {"active", tally_json(r.active[i])}};
+  }
+  Json& reasons = j["lost_by_reason"] = Json::object();
+  for (const LossReason reason : kLossReasons)
+    reasons[std::string(to_string(reason))] = tally_json(sum(r.collection->lost(reason)));
+  return j;
+}
+
+Json wall_json(const RunRecord& r) {
+  const StageTimes& s = r.solver.seconds;
+  return {{"total", r.wall},
+          {"stages",
+           {{"feed", r.own.feed},
+            {"broadphase", s.broadphase},
+            {"narrowphase", s.narrowphase},
+            {"forces", s.forces},
+            {"assemble", s.assemble},
+            {"solve", s.solve},
+            {"integrate", s.integrate},
+            {"collect", r.own.collect},
+            {"output", r.own.output}}}};
+}
+
+Json solver_json(const RunRecord& r) {
+  const SolverSettings& settings = r.sim->model->solver;
+  const SolverSummary& s = r.solver;
+  return {{"method", method_name(settings.method)},
+          {"max_iterations", settings.max_iterations},
+          {"tolerance_mps", settings.tolerance},
+          {"steps_solved", s.solved_steps},
+          {"iterations_mean", s.iterations_mean},
+          {"iterations_max", s.iterations_max},
+          {"steps_at_iteration_cap", s.steps_at_cap},
+          {"residual_median_mps", s.residual_median},
+          {"residual_p95_mps", s.residual_p95},
+          {"residual_max_mps", s.residual_max},
+          {"max_penetration_m", s.max_penetration},
+          {"max_penetration_relative", s.max_penetration_relative},
+          {"joint_drift_max_m", s.max_joint_drift},
+          {"particles_max", s.max_particles},
+          {"contacts_max", s.max_contacts}};
+}
+
+Json feeds_json(const RunRecord& r) {
+  Json feeds = Json::array();
+  for (const FeedRecord& f : r.feeds)
+    feeds.push_back({{"name", f.name},
+                     {"rate_basis", f.by_mass ? "mass" : "count"},
+                     {"target", f.target},
+                     {"fed", tally_json(f.fed)},
+                     {"spawn_retries", f.retries},
+                     {"deferrals", f.deferrals}});
+  return feeds;
+}
+
+Json spawn_json(const RunRecord& r) {
+  std::uint64_t retries = 0, deferrals = 0;
+  for (const FeedRecord& f : r.feeds) {
+    retries += f.retries;
+    deferrals += f.deferrals;
+  }
+  return {{"retries", retries}, {"deferrals", deferrals}};
+}
+
+Json collectors_json(const RunRecord& r) {
+  Json out = Json::array();
+  for (std::size_t k = 0; k < r.sim->collectors.size(); ++k) {
+    const CollectorTallies& t = r.collection->collectors()[k];
+    Json products = Json::array();
+    for (const ProductResult& p : r.products) {
+      if (p.collector != int(k)) continue;
+      const auto& materials = r.sim->model->materials.materials();
+      products.push_back({{"name", r.sim->collectors[k].products[std::size_t(p.product)].name},
+                          {"mass_kg", p.total_kg},
+                          {"main_material",
+                           p.main_material < 0 ? "" : materials[std::size_t(p.main_material)].name},
+                          {"grade", p.grade},
+                          {"recovery", p.recovery}});
+    }
+    out.push_back({{"name", r.sim->collectors[k].name},
+                   {"collected", tally_json(sum(t.total))},
+                   {"outside_bins", tally_json(sum(t.outside))},
+                   {"products", products}});
+  }
+  return out;
+}
+
+std::string grams(double kg) {
+  char s[32];
+  std::snprintf(s, sizeof s, "%.4g g", kg * 1e3);
+  return s;
+}
+
+std::string count_and_mass(const Tally& t) {
+  return std::to_string(t.count) + " (" + grams(t.kg()) + ")";
+}
+
+void print_products(const RunRecord& r, std::FILE* out) {
+  if (r.products.empty()) return;
+  std::fprintf(out, "products:\n");
+  const auto& materials = r.sim->model->materials.materials();
+  for (const ProductResult& p : r.products) {
+    const Collector& c = r.sim->collectors[std::size_t(p.collector)];
+    const std::string name = c.name + "/" + c.products[std::size_t(p.product)].name;
+    if (p.main_material < 0) {
+      std::fprintf(out, "  %-24s empty\n", name.c_str());
+      continue;
+    }
+    std::fprintf(out, "  %-24s %-12s grade %5.1f %%  recovery %5.1f %%  %s\n", name.c_str(),
+                 materials[std::size_t(p.main_material)].name.c_str(), 100.0 * p.grade,
+                 100.0 * p.recovery, grams(p.total_kg).c_str());
+  }
+}
+
+void print_indicators(const RunRecord& r, std::FILE* out) {
+  const SolverSummary& s = r.solver;
+  std::fprintf(out,
+               "solver: iterations mean %.1f, max %d (%llu steps at the cap); residual "
+               "median %.2g, p95 %.2g m/s; max penetration %.3g mm (%.1f %% of radius)\n",
+               s.iterations_mean, s.iterations_max, (unsigned long long)s.steps_at_cap,
+               s.residual_median, s.residual_p95, s.max_penetration * 1e3,
+               100.0 * s.max_penetration_relative);
+}
+
+}  // namespace
+
+void add_warnings(RunRecord& r) {
+  auto warn = [&](std::string w) { r.warnings.push_back(std::move(w)); };
+  const SolverSummary& s = r.solver;
+  if (s.steps_at_cap > 0)
+    warn(std::to_string(s.steps_at_cap) + " of " + std::to_string(s.solved_steps) +
+         " solved steps stopped at the iteration cap before reaching the tolerance");
+  if (s.max_penetration_relative > 0.1)
+    warn("particles overlapped by up to " +
+         std::to_string(int(100.0 * s.max_penetration_relative)) +
+         " % of their radius: consider a smaller time step or more iterations");
+  for (const FeedRecord& f : r.feeds) {
+    if (f.deferrals > 0)
+      warn("feed '" + f.name + "': " + std::to_string(f.deferrals) +
+           " particles deferred to a later step because its region was full");
+    const double fed = f.by_mass ? f.fed.kg() : double(f.fed.count);
+    const double one = f.by_mass && f.fed.count > 0 ? fed / double(f.fed.count) : 1.0;
+    if (f.target - fed > 1.5 * one)
+      warn("feed '" + f.name + "' fed " + format_number(fed) + " of the " +
+           format_number(f.target) + (f.by_mass ? " kg" : " particles") + " its rate asked for");
+  }
+  for (const LossReason reason : kLossReasons)
+    if (const Tally t = sum(r.collection->lost(reason)); t.count > 0)
+      warn(std::to_string(t.count) + " particles lost: " + std::string(to_string(reason)));
+  if (!balanced(r, fates(r))) warn("internal: particle balance does not close");
+}
+
+std::string summary_json(const RunRecord& r) {
+  const Simulation& sim = *r.sim;
+  Json j = {{"tool", "ces-sim"},
+            {"version", CES_VERSION},
+            {"complete", r.complete},
+            {"reason", r.reason},
+            {"scene", {{"name", sim.name}, {"path", sim.scene_path}, {"hash", sim.scene_hash}}},
+            {"seed", sim.seed},
+            {"threads", r.threads},
+            {"step_s", sim.model->step},
+            {"end_time_s", sim.end_time},
+            {"steps", r.steps},
+            {"simulated_time_s", r.time},
+            {"wall_time_s", wall_json(r)},
+            {"balance", balance_json(r)},
+            {"collectors", collectors_json(r)},
+            {"solver", solver_json(r)},
+            {"feeds", feeds_json(r)},
+            {"spawn", spawn_json(r)},
+            {"trajectory_frames", r.frames},
+            {"active_components", sim.active_components},
+            {"warnings", r.warnings}};
+  return j.dump(2) + "\n";
+}
+
+void print_report(const RunRecord& r, std::FILE* out) {
+  const Fates f = fates(r);
+  std::fprintf(out, "ces-sim %s: %s, seed %llu, %d thread%s\n", CES_VERSION, r.sim->name.c_str(),
+               (unsigned long long)r.sim->seed, r.threads, r.threads == 1 ? "" : "s");
+  const std::string status = r.complete ? "complete" : "INCOMPLETE (" + r.reason + ")";
+  std::fprintf(out, "%s: %llu steps, %.4g s simulated in %.3g s wall\n", status.c_str(),
+               (unsigned long long)r.steps, r.time, r.wall);
+  std::fprintf(out, "particles: fed %s, collected %s, lost %s, in flight %s\n",
+               count_and_mass(sum(r.fed)).c_str(), count_and_mass(sum(f.collected)).c_str(),
+               count_and_mass(sum(f.lost)).c_str(), count_and_mass(sum(r.active)).c_str());
+  print_products(r, out);
+  print_indicators(r, out);
+  for (const std::string& w : r.warnings) std::fprintf(out, "warning: %s\n", w.c_str());
+  std::fprintf(out, "output: %s\n", r.out_dir.c_str());
+}
+
+}  // namespace ces::output

@@ -1,0 +1,60 @@
+// summary.json and the end-of-run report on stdout.
+#pragma once
+#include <cstdint>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "output/collection.hpp"
+#include "output/step_log.hpp"
+#include "output/tables.hpp"
+#include "output/tally.hpp"
+#include "sim/simulation.hpp"
+
+namespace ces::output {
+
+struct FeedRecord {
+  std::string name;
+  bool by_mass = true;  // mass rate (kg/s), else count rate (1/s)
+  double target = 0.0;  // what the rate asked for by the end (kg or count)
+  Tally fed;
+  std::uint64_t retries = 0;
+  std::uint64_t deferrals = 0;
+};
+
+// Wall time outside the engine's own stages (s).
+struct OwnTimes {
+  double feed = 0.0;
+  double collect = 0.0;
+  double output = 0.0;
+};
+
+// Everything a run reports, gathered by sim/run.cpp.
+struct RunRecord {
+  const Simulation* sim = nullptr;
+  const Collection* collection = nullptr;
+  std::string out_dir;
+  bool complete = false;
+  std::string reason;
+  std::uint64_t steps = 0;
+  double time = 0.0;  // simulated (s)
+  int threads = 1;
+  double wall = 0.0;  // s
+  OwnTimes own;
+  SolverSummary solver;
+  std::vector<FeedRecord> feeds;
+  std::vector<Tally> fed, active;  // per Model material
+  std::vector<int> materials;      // the reported ones (fed_materials)
+  std::vector<ProductResult> products;
+  std::size_t frames = 0;
+  std::vector<std::string> warnings;
+};
+
+// What a user should look at twice: solver caps, deep overlaps, deferred or
+// missing feed, lost particles. Appends to record.warnings.
+void add_warnings(RunRecord& record);
+
+std::string summary_json(const RunRecord& record);
+void print_report(const RunRecord& record, std::FILE* out);
+
+}  // namespace ces::output

@@ -1,0 +1,158 @@
+#include "output/trajectories.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numeric>
+
+#include "output/format.hpp"
+
+namespace ces::output {
+namespace {
+
+std::string frame_name(std::size_t frame) {
+  char name[40];
+  std::snprintf(name, sizeof name, "frame_%06zu.vtp", frame);
+  return name;
+}
+
+void append_vec(std::string& out, const Vec3& v) {
+  append_number(out, v.x());
+  out += ' ';
+  append_number(out, v.y());
+  out += ' ';
+  append_number(out, v.z());
+  out += '\n';
+}
+
+// One <DataArray> whose values are produced by item(out, i) for i in order.
+template <class Item>
+void data_array(std::string& out, const char* type, const char* name, int components, std::size_t n,
+                Item item) {
+  out += "        <DataArray type=\"";
+  out += type;
+  out += "\" Name=\"";
+  out += name;
+  out += "\" NumberOfComponents=\"";
+  append_number(out, components);
+  out += "\" format=\"ascii\">\n";
+  for (std::size_t i = 0; i < n; ++i) item(out, i);
+  out += "        </DataArray>\n";
+}
+
+void line(std::string& out, auto value) {
+  append_number(out, value);
+  out += '\n';
+}
+
+}  // namespace
+
+TrajectoryWriter::TrajectoryWriter(const std::filesystem::path& dir, const Simulation& sim,
+                                   std::vector<double> shape_size)
+    : dir_(dir),
+      sim_(&sim),
+      shape_size_(std::move(shape_size)),
+      every_(sim.output.trajectories.every) {
+  if (every_ <= 0.0) return;
+  if (sim.output.trajectories.vtk) std::filesystem::create_directories(dir_ / "trajectories");
+  if (sim.output.trajectories.csv) {
+    csv_ = AtomicFile(dir_ / "trajectories.csv");
+    csv_.write("time_s,id,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,diameter_m,material\n");
+  }
+}
+
+void TrajectoryWriter::observe(const World& world) {
+  if (every_ <= 0.0) return;
+  const double due = world.time() + 0.5 * world.model().step;
+  if (due < double(next_frame_) * every_) return;
+  next_frame_ = std::uint64_t(std::floor(due / every_)) + 1;
+  sort_by_id(world.particles());
+  if (sim_->output.trajectories.vtk) write_vtp(world);
+  frame_times_.push_back(world.time());
+  if (sim_->output.trajectories.vtk) write_pvd();
+  if (csv_.is_open()) append_csv(world);
+}
+
+void TrajectoryWriter::commit() {
+  if (csv_.is_open()) csv_.commit();
+}
+
+void TrajectoryWriter::sort_by_id(const Particles& p) {
+  order_.resize(p.size());
+  std::iota(order_.begin(), order_.end(), std::size_t{0});
+  std::sort(order_.begin(), order_.end(),
+            [&](std::size_t a, std::size_t b) { return p.id[a] < p.id[b]; });
+}
+
+void TrajectoryWriter::write_vtp(const World& world) {
+  const Particles& p = world.particles();
+  const std::size_t n = order_.size();
+  text_ =
+      "<?xml version=\"1.0\"?>\n"
+      "<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" "
+      "header_type=\"UInt64\">\n"
+      "  <PolyData>\n"
+      "    <FieldData>\n"
+      "      <DataArray type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\" "
+      "format=\"ascii\">";
+  append_number(text_, world.time());
+  text_ += "</DataArray>\n    </FieldData>\n    <Piece NumberOfPoints=\"";
+  append_number(text_, n);
+  text_ += "\" NumberOfVerts=\"";
+  append_number(text_, n);
+  text_ +=
+      "\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n"
+      "      <PointData Scalars=\"diameter\" Vectors=\"velocity\">\n";
+  data_array(text_, "UInt64", "id", 1, n,
+             [&](std::string& o, std::size_t i) { line(o, p.id[order_[i]]); });
+  data_array(text_, "Float64", "diameter", 1, n, [&](std::string& o, std::size_t i) {
+    line(o, p.scale[order_[i]] * shape_size_[std::size_t(p.shape[order_[i]])]);
+  });
+  data_array(text_, "Int32", "material", 1, n,
+             [&](std::string& o, std::size_t i) { line(o, int(p.material[order_[i]])); });
+  data_array(text_, "Float64", "charge", 1, n,
+             [&](std::string& o, std::size_t i) { line(o, p.charge[order_[i]]); });
+  data_array(text_, "Float64", "velocity", 3, n,
+             [&](std::string& o, std::size_t i) { append_vec(o, p.velocity[order_[i]]); });
+  text_ += "      </PointData>\n      <Points>\n";
+  data_array(text_, "Float64", "position", 3, n,
+             [&](std::string& o, std::size_t i) { append_vec(o, p.position[order_[i]]); });
+  text_ += "      </Points>\n      <Verts>\n";
+  data_array(text_, "Int64", "connectivity", 1, n,
+             [](std::string& o, std::size_t i) { line(o, std::int64_t(i)); });
+  data_array(text_, "Int64", "offsets", 1, n,
+             [](std::string& o, std::size_t i) { line(o, std::int64_t(i + 1)); });
+  text_ += "      </Verts>\n    </Piece>\n  </PolyData>\n</VTKFile>\n";
+  write_file_atomic(dir_ / "trajectories" / frame_name(frame_times_.size()), text_);
+}
+
+void TrajectoryWriter::write_pvd() {
+  std::string pvd =
+      "<?xml version=\"1.0\"?>\n"
+      "<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
+      "  <Collection>\n";
+  for (std::size_t k = 0; k < frame_times_.size(); ++k) {
+    pvd += "    <DataSet timestep=\"";
+    append_number(pvd, frame_times_[k]);
+    pvd += "\" group=\"\" part=\"0\" file=\"trajectories/" + frame_name(k) + "\"/>\n";
+  }
+  pvd += "  </Collection>\n</VTKFile>\n";
+  write_file_atomic(dir_ / "trajectories.pvd", pvd);
+}
+
+void TrajectoryWriter::append_csv(const World& world) {
+  const Particles& p = world.particles();
+  const auto& materials = world.model().materials.materials();
+  text_.clear();
+  CsvWriter row(text_);
+  for (const std::size_t i : order_) {
+    row << world.time() << p.id[i] << p.position[i].x() << p.position[i].y() << p.position[i].z()
+        << p.velocity[i].x() << p.velocity[i].y() << p.velocity[i].z()
+        << p.scale[i] * shape_size_[std::size_t(p.shape[i])]
+        << materials[std::size_t(p.material[i])].name;
+    row.end_row();
+  }
+  csv_.write(text_);
+}
+
+}  // namespace ces::output

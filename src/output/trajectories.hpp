@@ -1,0 +1,48 @@
+// Particle trajectories, one frame every `every` seconds of simulated time:
+//  - VTK XML PolyData, one trajectories/frame_NNNNNN.vtp per frame (points:
+//    particle centres; point data: id, diameter, material, charge, velocity;
+//    one vertex cell per point so ParaView draws them), indexed by
+//    trajectories.pvd, which is rewritten after every frame so it always
+//    lists every frame on disk;
+//  - trajectories.csv, one row per particle per frame.
+// Particles appear in id order, so equal runs give equal files.
+#pragma once
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "dynamics/world.hpp"
+#include "output/files.hpp"
+#include "sim/simulation.hpp"
+
+namespace ces::output {
+
+class TrajectoryWriter {
+ public:
+  TrajectoryWriter(const std::filesystem::path& dir, const Simulation& sim,
+                   std::vector<double> shape_size);
+
+  // Writes a frame if one is due at world.time().
+  void observe(const World& world);
+  // Publishes trajectories.csv.
+  void commit();
+  std::size_t frames() const { return frame_times_.size(); }
+
+ private:
+  void sort_by_id(const Particles& p);
+  void write_vtp(const World& world);
+  void write_pvd();
+  void append_csv(const World& world);
+
+  std::filesystem::path dir_;
+  const Simulation* sim_;
+  std::vector<double> shape_size_;
+  double every_ = 0.0;
+  std::uint64_t next_frame_ = 0;
+  std::vector<double> frame_times_;
+  AtomicFile csv_;
+  std::vector<std::size_t> order_;  // particle indices by id
+  std::string text_;                // reused frame buffer
+};
+
+}  // namespace ces::output

@@ -1,0 +1,24 @@
+// Runs a compiled Simulation: builds the World, attaches feeds, collectors,
+// the domain and the observers that write the output folder.
+#pragma once
+#include <string>
+
+#include "sim/simulation.hpp"
+
+namespace ces {
+
+struct RunOptions {
+  std::string out_dir;   // overrides Simulation::output.dir when not empty
+  bool progress = false; // a progress line on stderr
+  bool quiet = false;    // no end-of-run report on stdout
+};
+
+struct RunResult {
+  bool complete = false;
+  std::string reason;    // why not complete ("interrupted by SIGINT", error text)
+  std::string out_dir;
+};
+
+RunResult run(const Simulation& sim, const RunOptions& options);
+
+}  // namespace ces

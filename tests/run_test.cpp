@@ -1,0 +1,472 @@
+// The runner below the command line: feeders, collectors and the domain, the
+// exact particle balance, and the output files (atomic, complete: false on
+// an interrupted run). Simulations are built in C++ here; the command line
+// and scene files are covered by cli_test.cpp.
+#include "sim/run.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "dynamics/world.hpp"
+#include "feed/feeder.hpp"
+#include "output/collection.hpp"
+#include "output/compare.hpp"
+#include "output/files.hpp"
+
+namespace ces {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kCopper = 0, kFr4 = 1, kSteel = 2;
+
+// Copper, FR-4 and steel; shape 0 a unit-diameter sphere, shape 1 a
+// three-sphere flake (size 2 at scale 1); no gravity unless asked.
+std::shared_ptr<Model> make_model(Vec3 gravity = Vec3::Zero()) {
+  auto m = std::make_shared<Model>();
+  m->step = 1e-3;
+  m->gravity = gravity;
+  m->materials = MaterialTable(
+      {{"copper", 8960, 0.3, 0.0}, {"fr4", 1850, 0.4, 0.0}, {"steel", 7800, 0.3, 0.0}}, {});
+  m->shapes.push_back(make_particle_shape({Vec3::Zero()}, {0.5}));
+  m->shapes.push_back(
+      make_particle_shape({Vec3(-0.5, 0, 0), Vec3::Zero(), Vec3(0.5, 0, 0)}, {0.5, 0.5, 0.5}));
+  return m;
+}
+
+FeedComponent component(int material, double fraction, double dmin, double dmax, int shape = 0) {
+  FeedComponent c;
+  c.material = material;
+  c.mass_fraction = fraction;
+  c.size = dmin == dmax ? feed::SizeDistribution::constant(dmin)
+                        : feed::SizeDistribution::uniform(dmin, dmax, feed::Basis::number);
+  c.shape = shape;
+  c.shape_size = shape == 0 ? 1.0 : 2.0;
+  return c;
+}
+
+Feed make_feed(const std::string& name, geo::Aabb region, std::vector<FeedComponent> mix) {
+  Feed f;
+  f.name = name;
+  f.region = region;
+  f.mix = std::move(mix);
+  return f;
+}
+
+geo::Aabb box(Vec3 lo, Vec3 hi) { return geo::Aabb{lo, hi}; }
+
+// Heaviest particle a component can make (a sphere of diameter dmax).
+double sphere_mass(double density, double d) { return density * kPi / 6.0 * d * d * d; }
+
+// Runs a World with feeders for n steps; calls check(world, feeders) after each.
+template <class Check>
+void run_feeders(std::shared_ptr<Model> model, const std::vector<Feed>& feeds, int steps,
+                 Check check, std::uint64_t seed = 1) {
+  World world(model);
+  std::vector<std::unique_ptr<feed::Feeder>> feeders;
+  for (const Feed& f : feeds) {
+    feed::Feeder* p = feeders.emplace_back(std::make_unique<feed::Feeder>(f, seed, *model)).get();
+    world.add_pre_step([p](World& w) { (*p)(w); });
+  }
+  for (int i = 0; i < steps; ++i) {
+    world.step();
+    check(world, feeders);
+  }
+}
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// Per process: ctest runs tests in parallel processes.
+std::string temp_prefix() { return "ces_run_test_" + std::to_string(::getpid()) + "_"; }
+
+// Removes this process's folders once every test has run.
+class TempCleanup : public ::testing::Environment {
+  void TearDown() override {
+    for (const auto& e : fs::directory_iterator(fs::temp_directory_path()))
+      if (e.path().filename().string().starts_with(temp_prefix())) fs::remove_all(e.path());
+  }
+};
+[[maybe_unused]] const auto* const kCleanup = ::testing::AddGlobalTestEnvironment(new TempCleanup);
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / (temp_prefix() + name);
+  fs::remove_all(dir);
+  return dir;
+}
+
+TEST(RunFeeder, MassRateTracksRateTimesTimeWithinOneParticle) {
+  Feed f = make_feed("hopper", box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.05)),
+                     {component(kFr4, 1.0, 0.5e-3, 1.5e-3)});
+  f.mass_rate = 2e-3;  // 2 g/s: a few particles per step
+  f.start = 0.02;
+  f.duration = 0.1;
+  const double heaviest = sphere_mass(1850, 1.5e-3);
+  double last = 0;
+  run_feeders(make_model(), {f}, 150, [&](const World& w, const auto& feeders) {
+    const double elapsed = std::clamp(w.time() - f.start, 0.0, f.duration);
+    const double fed = feeders[0]->stats().total().kg();
+    EXPECT_LE(std::abs(fed - f.mass_rate * elapsed), heaviest) << "t = " << w.time();
+    last = fed;
+  });
+  EXPECT_NEAR(last, f.mass_rate * f.duration, heaviest);
+}
+
+TEST(RunFeeder, CountRateTracksRateTimesTimeWithinOneParticle) {
+  Feed f = make_feed("counter", box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.05)),
+                     {component(kCopper, 1.0, 1e-3, 1e-3)});
+  f.count_rate = 1234.5;
+  run_feeders(make_model(), {f}, 100, [&](const World& w, const auto& feeders) {
+    const double fed = double(feeders[0]->stats().total().count);
+    EXPECT_LE(std::abs(fed - f.count_rate * w.time()), 1.0) << "t = " << w.time();
+    EXPECT_EQ(w.particles().size(), feeders[0]->stats().total().count);
+  });
+}
+
+TEST(RunFeeder, MixMassFractionsConvergeWithinOneParticle) {
+  Feed f = make_feed("mix", box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.05)),
+                     {component(kCopper, 0.3, 0.5e-3, 1.2e-3), component(kFr4, 0.7, 0.5e-3, 2e-3)});
+  f.mass_rate = 5e-3;
+  const double heaviest = std::max(sphere_mass(8960, 1.2e-3), sphere_mass(1850, 2e-3));
+  run_feeders(make_model(), {f}, 100, [&](const World&, const auto& feeders) {
+    const feed::FeedStats& s = feeders[0]->stats();
+    const double total = s.total().kg();
+    EXPECT_LE(std::abs(s.fed[0].kg() - 0.3 * total), heaviest);
+    EXPECT_LE(std::abs(s.fed[1].kg() - 0.7 * total), heaviest);
+  });
+}
+
+// Distance between two particles' surfaces (negative: overlap), sphere by sphere.
+double clearance(const Model& m, const Particles& p, std::size_t a, std::size_t b) {
+  const ParticleShape &sa = m.shapes[std::size_t(p.shape[a])],
+                      &sb = m.shapes[std::size_t(p.shape[b])];
+  double gap = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < sa.centers.size(); ++i)
+    for (std::size_t j = 0; j < sb.centers.size(); ++j) {
+      const Vec3 ca = p.position[a] + p.orientation[a] * (p.scale[a] * sa.centers[i]);
+      const Vec3 cb = p.position[b] + p.orientation[b] * (p.scale[b] * sb.centers[j]);
+      gap = std::min(gap, (ca - cb).norm() - p.scale[a] * sa.radii[i] - p.scale[b] * sb.radii[j]);
+    }
+  return gap;
+}
+
+double body_clearance(const Model& m, const World& w, const Particles& p, std::size_t a) {
+  const ParticleShape& s = m.shapes[std::size_t(p.shape[a])];
+  double gap = std::numeric_limits<double>::infinity();
+  std::vector<geo::SurfaceHit> hits;
+  for (std::size_t k = 0; k < m.bodies.size(); ++k)
+    for (std::size_t i = 0; i < s.centers.size(); ++i) {
+      const Vec3 c = p.position[a] + p.orientation[a] * (p.scale[a] * s.centers[i]);
+      hits.clear();
+      geo::query(m.bodies[k].shape, w.bodies().pose[k].inverse_apply(c), 1.0, hits);
+      for (const auto& h : hits) gap = std::min(gap, h.distance - p.scale[a] * s.radii[i]);
+    }
+  return gap;
+}
+
+TEST(RunFeeder, SpawnsWithoutOverlapAndCountsRetriesAndDeferrals) {
+  auto model = make_model();
+  RigidBody wall;  // a steel slab through the middle of the feed region
+  wall.name = "wall";
+  wall.shape = geo::Box{Vec3(0.002, 0.02, 0.02)};
+  wall.material = kSteel;
+  model->bodies.push_back(wall);
+  // A crowded region: flakes of 2-3 mm into 1 cm^3, fed much faster than they fit.
+  Feed f = make_feed("crowd", box(Vec3(-0.005, -0.005, -0.005), Vec3(0.005, 0.005, 0.005)),
+                     {component(kFr4, 0.5, 1e-3, 1.5e-3, 1), component(kCopper, 0.5, 1e-3, 1e-3)});
+  f.count_rate = 20000;
+  f.max_attempts = 10;
+  World world(model);
+  feed::Feeder feeder(f, 7, *model);
+  std::size_t checked = 0;
+  world.add_pre_step([&](World& w) {
+    feeder(w);
+    // Every particle added this step keeps clear of bodies and of all others.
+    const Particles& p = w.particles();
+    for (std::size_t a = checked; a < p.size(); ++a) {
+      EXPECT_GE(body_clearance(*model, w, p, a), 0.0) << "particle " << p.id[a];
+      for (std::size_t b = 0; b < a; ++b)
+        EXPECT_GE(clearance(*model, p, a, b), 0.0) << p.id[a] << " vs " << p.id[b];
+    }
+    checked = p.size();
+  });
+  for (int i = 0; i < 10; ++i) world.step();
+  EXPECT_GT(world.particles().size(), 20u);
+  EXPECT_GT(feeder.stats().retries, 0u);
+  EXPECT_GT(feeder.stats().deferrals, 0u);
+}
+
+// (position, scale, material) of every particle left of x = 0.
+std::multiset<std::tuple<double, double, double, double, int>> left_particles(const World& w) {
+  std::multiset<std::tuple<double, double, double, double, int>> out;
+  const Particles& p = w.particles();
+  for (std::size_t i = 0; i < p.size(); ++i)
+    if (p.position[i].x() < 0)
+      out.insert(
+          {p.position[i].x(), p.position[i].y(), p.position[i].z(), p.scale[i], p.material[i]});
+  return out;
+}
+
+TEST(RunFeeder, AddingAFeedLeavesAnotherFeedsParticlesUnchanged) {
+  const Feed left =
+      make_feed("left", box(Vec3(-0.2, -0.05, -0.05), Vec3(-0.1, 0.05, 0.05)),
+                {component(kCopper, 0.4, 0.5e-3, 1e-3), component(kFr4, 0.6, 0.5e-3, 2e-3)});
+  Feed right = left;
+  right.name = "right";
+  right.region = box(Vec3(0.1, -0.05, -0.05), Vec3(0.2, 0.05, 0.05));
+  Feed l = left, r = right;
+  l.mass_rate = r.mass_rate = 3e-3;
+  World alone(make_model()), both(make_model());
+  std::multiset<std::tuple<double, double, double, double, int>> a, b;
+  run_feeders(make_model(), {l}, 30, [&](const World& w, const auto&) { a = left_particles(w); });
+  run_feeders(make_model(), {r, l}, 30,
+              [&](const World& w, const auto&) { b = left_particles(w); });
+  EXPECT_GT(a.size(), 10u);
+  EXPECT_EQ(a, b);
+  // Streams differ by feed name and by scene seed.
+  EXPECT_NE(feed::stream_seed(1, "left"), feed::stream_seed(1, "right"));
+  EXPECT_NE(feed::stream_seed(1, "left"), feed::stream_seed(2, "left"));
+  EXPECT_EQ(feed::stream_seed(1, "left"), feed::stream_seed(1, "left"));
+}
+
+// A simulation with one collector plane y = 0 (normal +y), ten 1 cm bins on
+// [0, 0.1) along x and two products, and a domain box.
+Simulation collector_sim() {
+  Simulation sim;
+  sim.name = "collector";
+  sim.model = make_model();
+  Collector c;
+  c.name = "tray";
+  c.point = Vec3::Zero();
+  c.normal = Vec3::UnitY();
+  c.axis = Vec3::UnitX();
+  c.from = 0.0;
+  c.to = 0.1;
+  c.bins = 10;
+  c.products = {{"near", 0.0, 0.05}, {"far", 0.05, 0.1}};
+  sim.collectors.push_back(c);
+  sim.domain = box(Vec3(-0.5, -0.5, -0.5), Vec3(0.5, 0.5, 0.5));
+  sim.feeds.push_back(
+      make_feed("f", box(Vec3::Zero(), Vec3::Zero()),
+                {component(kCopper, 0.5, 1e-3, 1e-3), component(kFr4, 0.5, 1e-3, 1e-3)}));
+  return sim;
+}
+
+TEST(RunCollection, BinsProductsCrossingsAndLosses) {
+  const Simulation sim = collector_sim();
+  World world(sim.model);
+  output::Collection collection(sim, output::shape_sizes(sim));
+  world.add_post_step([&](World& w) { collection(w); });
+  const Vec3 down(0, -1, 0);
+  // Falling at 1 m/s from y = 0.1005: they cross y = 0 at t = 0.1005 s, mid-step.
+  for (double x : {0.005, 0.0125, 0.0175, 0.055, 0.095})
+    world.add_particle(0, 1e-3, kCopper, Vec3(x, 0.1005, 0), Quat::Identity(), down);
+  world.add_particle(0, 1e-3, kFr4, Vec3(0.045, 0.1005, 0), Quat::Identity(), down);
+  world.add_particle(0, 1e-3, kFr4, Vec3(0.2, 0.1005, 0), Quat::Identity(), down);  // outside bins
+  world.add_particle(0, 1e-3, kFr4, Vec3(0.02, -0.1, 0), Quat::Identity(),
+                     -down);  // from below: not collected
+  world.add_particle(0, 1e-3, kCopper, Vec3(0.45, 0.3, 0), Quat::Identity(),
+                     Vec3(1, 0, 0));  // leaves the domain
+  world.add_particle(0, 1e-3, kCopper, Vec3(0.3, 0.3, 0), Quat::Identity(),
+                     Vec3(std::numeric_limits<double>::quiet_NaN(), 0, 0));
+  for (int i = 0; i < 150; ++i) world.step();
+
+  collection.sort_records();
+  ASSERT_EQ(collection.crossings().size(), 7u);
+  for (const output::Crossing& c : collection.crossings()) {
+    EXPECT_NEAR(c.time, 0.1005, 1e-12);
+    EXPECT_NEAR(c.position.y(), 0.0, 1e-12);
+    EXPECT_NEAR(c.diameter, 1e-3, 1e-15);
+  }
+  const output::CollectorTallies& t = collection.collectors()[0];
+  const std::size_t nm = collection.material_count();
+  EXPECT_EQ(t.bins[0 * nm + kCopper].count, 1u);
+  EXPECT_EQ(t.bins[1 * nm + kCopper].count, 2u);
+  EXPECT_EQ(t.bins[5 * nm + kCopper].count, 1u);
+  EXPECT_EQ(t.bins[9 * nm + kCopper].count, 1u);
+  EXPECT_EQ(t.bins[4 * nm + kFr4].count, 1u);
+  EXPECT_EQ(t.outside[kFr4].count, 1u);
+  EXPECT_EQ(t.products[0 * nm + kCopper].count, 3u);
+  EXPECT_EQ(t.products[1 * nm + kCopper].count, 2u);
+  EXPECT_EQ(t.products[0 * nm + kFr4].count, 1u);
+  EXPECT_EQ(t.total[kCopper].mass, 5 * output::to_mass_units(sphere_mass(8960, 1e-3) * 1.0));
+  // Crossings sorted by (time, id): equal times, so by id.
+  for (std::size_t k = 1; k < collection.crossings().size(); ++k)
+    EXPECT_LT(collection.crossings()[k - 1].id, collection.crossings()[k].id);
+
+  ASSERT_EQ(collection.losses().size(), 2u);
+  EXPECT_EQ(collection.lost(output::LossReason::LeftDomain)[kCopper].count, 1u);
+  EXPECT_EQ(collection.lost(output::LossReason::NonFinite)[kCopper].count, 1u);
+  EXPECT_EQ(world.particles().size(), 1u);  // the one rising from below
+}
+
+nlohmann::json read_json(const fs::path& p) { return nlohmann::json::parse(read_text(p)); }
+
+// A small run: gravity, a feed above a collector, a domain that loses the
+// particles thrown sideways, an end time that leaves some in flight.
+Simulation small_run(const fs::path& dir) {
+  Simulation sim = collector_sim();
+  sim.model = make_model(Vec3(0, -9.81, 0));
+  sim.seed = 3;
+  sim.end_time = 0.15;
+  sim.output.dir = dir.string();
+  sim.output.trajectories.every = 0.05;
+  sim.output.trajectories.csv = true;
+  sim.domain =
+      box(Vec3(-0.5, -0.5, -0.5), Vec3(0.08, 0.5, 0.5));  // particles past x = 0.08 are lost
+  Feed& f = sim.feeds[0];
+  f.region = box(Vec3(0.0, 0.05, -0.01), Vec3(0.1, 0.06, 0.01));
+  f.mass_rate = 1e-3;
+  f.velocity = Vec3(0, -0.5, 0);
+  f.velocity_spread = 0.1;
+  sim.resolved_yaml = "name: small\n";
+  return sim;
+}
+
+TEST(RunBalance, FedEqualsCollectedPlusLostPlusActiveExactly) {
+  const fs::path dir = fresh_dir("balance");
+  const RunResult r = run(small_run(dir), {.out_dir = "", .progress = false, .quiet = true});
+  ASSERT_TRUE(r.complete) << r.reason;
+  const nlohmann::json s = read_json(dir / "summary.json");
+  const nlohmann::json& b = s["balance"];
+  EXPECT_TRUE(b["exact"].get<bool>());
+  const auto count = [&](const char* k) { return b[k]["count"].get<std::uint64_t>(); };
+  EXPECT_GT(count("collected"), 0u);
+  EXPECT_GT(count("lost"), 0u);
+  EXPECT_GT(count("active"), 0u);
+  EXPECT_EQ(count("fed"), count("collected") + count("lost") + count("active"));
+  for (const char* m : {"copper", "fr4"}) {
+    const nlohmann::json& mb = b["materials"][m];
+    EXPECT_EQ(mb["fed"]["count"].get<std::uint64_t>(),
+              mb["collected"]["count"].get<std::uint64_t>() +
+                  mb["lost"]["count"].get<std::uint64_t>() +
+                  mb["active"]["count"].get<std::uint64_t>());
+  }
+  EXPECT_EQ(b["lost_by_reason"]["left domain"]["count"].get<std::uint64_t>(), count("lost"));
+  EXPECT_TRUE(s["complete"].get<bool>());
+  EXPECT_EQ(s["steps"].get<int>(), 150);
+  EXPECT_EQ(s["seed"].get<int>(), 3);
+}
+
+TEST(RunOutputs, WritesEveryFileAtomicallyWithNoTemporariesLeft) {
+  const fs::path dir = fresh_dir("files");
+  ASSERT_TRUE(run(small_run(dir), {.out_dir = "", .progress = false, .quiet = true}).complete);
+  for (const char* name : {"summary.json", "bins.csv", "products.csv", "crossings.csv", "lost.csv",
+                           "steps.csv", "scene.resolved.yaml", "distribution.svg",
+                           "trajectories.pvd", "trajectories.csv", "trajectories/frame_000003.vtp"})
+    EXPECT_TRUE(fs::exists(dir / name)) << name;
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    EXPECT_NE(e.path().extension(), ".tmp") << e.path();
+  EXPECT_EQ(read_text(dir / "scene.resolved.yaml"), "name: small\n");
+  // 150 steps + header.
+  const std::string steps = read_text(dir / "steps.csv");
+  EXPECT_EQ(std::count(steps.begin(), steps.end(), '\n'), 151);
+
+  // An uncommitted file leaves nothing; a committed one replaces the old bytes.
+  const fs::path p = dir / "atomic.txt";
+  {
+    output::AtomicFile f(p);
+    f.write("half");
+  }
+  EXPECT_FALSE(fs::exists(p));
+  EXPECT_FALSE(fs::exists(dir / "atomic.txt.tmp"));
+  output::write_file_atomic(p, "old");
+  output::write_file_atomic(p, "new");
+  EXPECT_EQ(read_text(p), "new");
+  EXPECT_THROW(output::write_file_atomic(dir / "no_such_dir" / "x", "x"), output::IoError);
+}
+
+TEST(RunOutputs, SameSeedGivesIdenticalTables) {
+  const fs::path a = fresh_dir("same_a"), b = fresh_dir("same_b");
+  ASSERT_TRUE(run(small_run(a), {.out_dir = "", .progress = false, .quiet = true}).complete);
+  ASSERT_TRUE(run(small_run(b), {.out_dir = "", .progress = false, .quiet = true}).complete);
+  for (const char* name : {"bins.csv", "products.csv", "crossings.csv", "lost.csv",
+                           "trajectories.csv", "trajectories/frame_000002.vtp"})
+    EXPECT_EQ(read_text(a / name), read_text(b / name)) << name;
+  EXPECT_TRUE(output::compare_outputs(a, b, {}).agree());
+}
+
+TEST(RunOutputs, ErrorMidRunKeepsOutputsAndSaysIncomplete) {
+  const fs::path dir = fresh_dir("error");
+  Simulation sim = small_run(dir);
+  // A second feed that starts at 50 ms and makes impossible particles: its
+  // hook throws mid-run.
+  Feed broken = sim.feeds[0];
+  broken.name = "broken";
+  broken.start = 0.05;
+  broken.mix[0].shape_size = 0.0;
+  broken.mix[1].shape_size = 0.0;
+  sim.feeds.push_back(broken);
+  const RunResult r = run(sim, {.out_dir = "", .progress = false, .quiet = true});
+  EXPECT_FALSE(r.complete);
+  EXPECT_NE(r.reason.find("broken"), std::string::npos) << r.reason;
+  const nlohmann::json s = read_json(dir / "summary.json");
+  EXPECT_FALSE(s["complete"].get<bool>());
+  EXPECT_EQ(s["reason"].get<std::string>(), r.reason);
+  // Its first particle is drawn by the step from 49 to 50 ms, which fails.
+  EXPECT_EQ(s["steps"].get<int>(), 49);
+  EXPECT_TRUE(s["balance"]["exact"].get<bool>());
+  for (const char* name : {"bins.csv", "products.csv", "crossings.csv", "steps.csv"})
+    EXPECT_TRUE(fs::exists(dir / name)) << name;
+}
+
+TEST(RunOutputs, SignalStopsTheRunBetweenStepsAndSaysIncomplete) {
+  const fs::path dir = fresh_dir("signal");
+  Simulation sim = small_run(dir);
+  sim.end_time = 1e4;  // would run for a very long time
+  std::thread interrupter([&] {
+    // The first summary (complete: false, "running") appears once the
+    // handlers are installed.
+    while (!fs::exists(dir / "summary.json"))
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    std::raise(SIGTERM);
+  });
+  const RunResult r = run(sim, {.out_dir = "", .progress = false, .quiet = true});
+  interrupter.join();
+  EXPECT_FALSE(r.complete);
+  EXPECT_EQ(r.reason, "interrupted by SIGTERM");
+  const nlohmann::json s = read_json(dir / "summary.json");
+  EXPECT_FALSE(s["complete"].get<bool>());
+  EXPECT_EQ(s["reason"].get<std::string>(), "interrupted by SIGTERM");
+  EXPECT_GT(s["steps"].get<int>(), 0);
+  EXPECT_TRUE(fs::exists(dir / "bins.csv"));
+}
+
+TEST(RunCompare, WassersteinOfShiftedSamplesIsTheShift) {
+  EXPECT_DOUBLE_EQ(output::wasserstein1({{0.0, 1.0}}, {{0.002, 5.0}}), 0.002);
+  EXPECT_NEAR(output::wasserstein1({{0, 1}, {1, 1}}, {{0.5, 1}, {1.5, 1}}), 0.5, 1e-15);
+  EXPECT_NEAR(output::wasserstein1({{0, 1}, {1, 3}}, {{0, 1}, {1, 3}}), 0.0, 0.0);
+  // Mass-weighted: moving a quarter of the mass by 1 costs 0.25.
+  EXPECT_NEAR(output::wasserstein1({{0, 3}, {1, 1}}, {{0, 1}}), 0.25, 1e-15);
+}
+
+TEST(RunCompare, FlagsChangedCellsBeyondTolerance) {
+  const fs::path a = fresh_dir("cmp_a"), b = fresh_dir("cmp_b");
+  ASSERT_TRUE(run(small_run(a), {.out_dir = "", .progress = false, .quiet = true}).complete);
+  Simulation other = small_run(b);
+  other.seed = 4;
+  ASSERT_TRUE(run(other, {.out_dir = "", .progress = false, .quiet = true}).complete);
+  const output::CompareResult strict = output::compare_outputs(a, b, {});
+  EXPECT_FALSE(strict.agree());
+  const output::CompareResult loose = output::compare_outputs(a, b, {1000, 1.0, 1000.0});
+  EXPECT_TRUE(loose.agree()) << loose.differences.front();
+  EXPECT_THROW(output::compare_outputs(a, a / "missing", {}), output::IoError);
+}
+
+}  // namespace
+}  // namespace ces
