@@ -47,7 +47,7 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
 
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   chunk_pairs_.resize(chunks);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (chunks > 1)
   for (std::size_t ch = 0; ch < chunks; ++ch) {
     auto& out = chunk_pairs_[ch];
     out.clear();

@@ -37,7 +37,7 @@ template <class Fill>
 void run_chunked(std::size_t n, std::vector<Contacts>& chunks, Contacts& out, Fill fill) {
   const std::size_t count = (n + kChunk - 1) / kChunk;
   chunks.resize(count);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (count > 1)
   for (std::size_t ch = 0; ch < count; ++ch) {
     chunks[ch].clear();
     fill(ch * kChunk, std::min(n, (ch + 1) * kChunk), chunks[ch]);
