@@ -1,0 +1,309 @@
+#include "fields/stages.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace ces::fields {
+namespace {
+
+// A sphere touches a body when its contact gap is below this fraction of its
+// radius, plus the turning allowance of touch_tolerance(): resting contacts
+// sit within solver tolerance of zero, while a contact that is only inside
+// the collision envelope (up to 25 % of r plus one step's travel) has not
+// touched yet.
+constexpr double kTouchFraction = 0.01;
+
+// Up to this many particles the loops stay serial, as World's own loops.
+constexpr std::size_t kParallelMin = 256;
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument(what);
+}
+
+// Radius of the sphere with each shape's volume, at scale 1.
+std::vector<double> unit_radii(const Model& model) {
+  std::vector<double> radii;
+  radii.reserve(model.shapes.size());
+  for (const ParticleShape& s : model.shapes)
+    radii.push_back(std::cbrt(3.0 * s.volume / (4.0 * kPi)));
+  return radii;
+}
+
+// Largest gap at which contact k still counts as touching its body. On a
+// turning body a carried particle starts each step off the surface by the
+// chord sag ρ (ω h)² / 2 of its last step (semi-implicit Euler moves it
+// along a tangent; the solve pulls it back): 3 µm at 60 rpm and 1 ms, 14 µm
+// at 128 rpm. Twice that is allowed, on top of the fraction of r.
+double touch_tolerance(const Contacts& c, std::size_t k, const Bodies& bodies, std::size_t body,
+                       double h) {
+  const Vec3& w = bodies.angular_velocity[body];
+  const double r = c.radius[k];
+  const Vec3 arm = c.point[k] - bodies.pose[body].position;
+  const double rho = w.squaredNorm() > 0.0 ? arm.cross(w.normalized()).norm() : 0.0;
+  return kTouchFraction * r + w.squaredNorm() * (rho + r) * h * h;
+}
+
+double particle_radius(const Particles& p, std::size_t i, const std::vector<double>& unit) {
+  return p.scale[i] * unit[std::size_t(p.shape[i])];
+}
+
+// ------------------------------------------------------------------ drag --
+
+Vec3 drag_force(const DragSpec& spec, const Vec3& velocity, double radius) {
+  if (spec.law == DragLaw::Stokes) return stokes_drag(velocity, radius, spec.air);
+  return schiller_naumann_drag(velocity, radius, spec.air);
+}
+
+// ---------------------------------------------------------------- corona --
+
+double angle_from(double angle, double origin) {
+  const double turn = 2.0 * kPi;
+  const double a = std::fmod(angle - origin, turn);
+  return a < 0.0 ? a + turn : a;
+}
+
+bool in_zone(const CoronaZone& zone, double drum_radius, const Vec3& x) {
+  if (std::hypot(x.x(), x.y()) > drum_radius + zone.depth) return false;
+  return angle_from(std::atan2(x.y(), x.x()), zone.angle_begin) <=
+         zone.angle_end - zone.angle_begin;
+}
+
+// The seed's instant charging: straight to Q_s, unless the charge already
+// is at or beyond it (no ion reaches it then, as in pauthenier_step).
+double saturate(double charge, double saturation) {
+  if (saturation == 0.0 || charge / saturation >= 1.0) return charge;
+  return saturation;
+}
+
+double corona_step(double charge, double radius, double eps_r, const CoronaZone& zone,
+                   double local_field, double h) {
+  const double e = zone.field.value_or(local_field);
+  if (zone.mode == CoronaCharging::Pauthenier)
+    return pauthenier_step(charge, radius, eps_r, {e, zone.current_density, zone.ion_sign}, h);
+  return saturate(charge, zone.ion_sign * pauthenier_saturation_charge(radius, eps_r, e));
+}
+
+// ------------------------------------------------------------ validation --
+
+void validate_material(const ElectricalMaterial& m, std::size_t index) {
+  const std::string at = "electrostatics: material " + std::to_string(index) + ": ";
+  require(m.metal_fraction >= 0.0 && m.metal_fraction <= 1.0,
+          at + "metal fraction must be in [0, 1]");
+  require(m.relative_permittivity >= 1.0, at + "relative permittivity must be >= 1");
+  require(m.decay_time >= 0.0, at + "decay time must be >= 0 (0 or infinity: no decay)");
+}
+
+void validate_zone(const CoronaZone& z, std::size_t index) {
+  const std::string at = "electrostatics: corona zone " + std::to_string(index) + ": ";
+  const double span = z.angle_end - z.angle_begin;
+  require(span > 0.0 && span <= 2.0 * kPi,
+          at + "needs angle_begin < angle_end <= angle_begin + 2 pi");
+  require(z.depth > 0.0, at + "depth must be positive");
+  require(!z.field || (std::isfinite(*z.field) && *z.field >= 0.0), at + "field must be >= 0");
+  require(z.current_density >= 0.0, at + "current density must be >= 0");
+  require(z.ion_sign == 1.0 || z.ion_sign == -1.0, at + "ion sign must be +1 or -1");
+}
+
+void validate_body(int body, std::size_t bodies, const char* name) {
+  require(body >= 0 && std::size_t(body) < bodies,
+          std::string("electrostatics: ") + name + " " + std::to_string(body) +
+              " is not a body of the model (" + std::to_string(bodies) + " bodies)");
+}
+
+void validate(const ElectrostaticsSpec& spec, const Model& model) {
+  require(spec.drum.radius > 0.0 && spec.drum.half_width > 0.0,
+          "electrostatics: drum radius and half-width must be positive");
+  validate_body(spec.drum_body, model.bodies.size(), "drum_body");
+  if (spec.brush_body) {
+    validate_body(*spec.brush_body, model.bodies.size(), "brush_body");
+    require(*spec.brush_body != spec.drum_body, "electrostatics: the brush cannot be the drum");
+  }
+  const std::size_t materials = model.materials.materials().size();
+  require(spec.materials.size() == materials,
+          "electrostatics: " + std::to_string(spec.materials.size()) +
+              " electrical materials given for " + std::to_string(materials) + " materials");
+  for (std::size_t k = 0; k < spec.materials.size(); ++k) validate_material(spec.materials[k], k);
+  for (std::size_t k = 0; k < spec.corona.size(); ++k) validate_zone(spec.corona[k], k);
+  require(spec.medium_relative_permittivity >= 1.0,
+          "electrostatics: medium relative permittivity must be >= 1");
+  if (const auto* grid = std::get_if<std::shared_ptr<const GridField>>(&spec.field))
+    require(*grid != nullptr, "electrostatics: the grid field is missing");
+}
+
+// ---------------------------------------------------------------- stage --
+
+// Where one particle is this step, as far as its charges are concerned.
+struct Site {
+  Vec3 position;            // centre of mass
+  Vec3 field;               // E there; zero beyond the drum width
+  bool active;              // |z| <= half-width
+  const Vec3* drum_normal;  // out of the drum at the touching contact, or null
+  bool brush;               // touches the brush
+  double radius;            // equivalent sphere
+};
+
+class ElectrostaticsStage {
+ public:
+  ElectrostaticsStage(ElectrostaticsSpec spec, std::vector<double> unit_radius)
+      : spec_(std::move(spec)), unit_radius_(std::move(unit_radius)) {
+    has_mixed_ = std::any_of(spec_.materials.begin(), spec_.materials.end(),
+                             [](const ElectricalMaterial& m) { return is_mixed(m); });
+  }
+
+  void operator()(World& world, const Contacts& contacts) {
+    Particles& p = world.particles();
+    const double h = world.model().step;
+    find_touches(contacts, world.bodies(), p.size(), h);
+    load_mixed(p);
+    const auto n = std::ptrdiff_t(p.size());
+#pragma omp parallel for schedule(static) if (p.size() > kParallelMin)
+    for (std::ptrdiff_t s = 0; s < n; ++s) update(p, std::size_t(s), contacts, h);
+    store_mixed(p);
+  }
+
+ private:
+  static bool is_mixed(const ElectricalMaterial& m) {
+    return m.metal_fraction > 0.0 && m.metal_fraction < 1.0;
+  }
+
+  // This step's touches, from the contact list (body contacts name the body
+  // first and point their normal out of it). A cluster touching the drum
+  // with several spheres uses its closest contact.
+  void find_touches(const Contacts& c, const Bodies& bodies, std::size_t np, double h) {
+    drum_contact_.assign(np, -1);
+    brush_touch_.assign(np, 0);
+    const int drum = int(np) + spec_.drum_body;
+    const int brush = spec_.brush_body ? int(np) + *spec_.brush_body : -1;
+    for (std::size_t k = 0; k < c.size(); ++k) {
+      const int body = c.body_a[k];
+      if (body != drum && body != brush) continue;
+      if (c.gap[k] > touch_tolerance(c, k, bodies, std::size_t(body) - np, h)) continue;
+      const auto i = std::size_t(c.body_b[k]);
+      if (body == brush) {
+        brush_touch_[i] = 1;
+        continue;
+      }
+      std::int32_t& best = drum_contact_[i];
+      if (best < 0 || c.gap[k] < c.gap[std::size_t(best)]) best = std::int32_t(k);
+    }
+  }
+
+  // Mixed particles' metal charges, carried between steps by particle id:
+  // indices change when particles are removed.
+  void load_mixed(const Particles& p) {
+    if (!has_mixed_) return;
+    metal_charge_.assign(p.size(), 0.0);
+    const auto n = std::ptrdiff_t(p.size());
+#pragma omp parallel for schedule(static) if (p.size() > kParallelMin)
+    for (std::ptrdiff_t s = 0; s < n; ++s) {
+      const auto i = std::size_t(s);
+      if (!is_mixed(material(p, i))) continue;
+      const auto it = std::lower_bound(
+          mixed_by_id_.begin(), mixed_by_id_.end(), p.id[i],
+          [](const std::pair<std::uint64_t, double>& e, std::uint64_t id) { return e.first < id; });
+      if (it != mixed_by_id_.end() && it->first == p.id[i]) metal_charge_[i] = it->second;
+    }
+  }
+
+  void store_mixed(const Particles& p) {
+    if (!has_mixed_) return;
+    mixed_by_id_.clear();
+    for (std::size_t i = 0; i < p.size(); ++i)
+      if (is_mixed(material(p, i))) mixed_by_id_.emplace_back(p.id[i], metal_charge_[i]);
+    std::sort(mixed_by_id_.begin(), mixed_by_id_.end());  // ids are unique
+  }
+
+  const ElectricalMaterial& material(const Particles& p, std::size_t i) const {
+    return spec_.materials[std::size_t(p.material[i])];
+  }
+
+  Site site(const Particles& p, std::size_t i, const Contacts& c) const {
+    const Vec3& x = p.position[i];
+    const bool active = std::abs(x.z()) <= spec_.drum.half_width;
+    const std::int32_t k = drum_contact_[i];
+    return {x,
+            active ? field_at(spec_.field, x) : Vec3::Zero(),
+            active,
+            k >= 0 ? &c.normal[std::size_t(k)] : nullptr,
+            brush_touch_[i] != 0,
+            particle_radius(p, i, unit_radius_)};
+  }
+
+  // One particle: both parts' charges for this step, then the w-weighted
+  // sum of their forces (PHYSICS §3).
+  void update(Particles& p, std::size_t i, const Contacts& c, double h) {
+    const ElectricalMaterial& m = material(p, i);
+    const Site at = site(p, i, c);
+    const double w = m.metal_fraction;
+    Vec3 force = Vec3::Zero();
+    if (w > 0.0) force += w * metal_part(w < 1.0 ? metal_charge_[i] : p.charge[i], at);
+    if (w < 1.0) force += (1.0 - w) * insulating_part(p.charge[i], m, at, h);
+    if (at.active) p.force[i] += force;
+  }
+
+  // Conductor: on the grounded drum its charge follows the local field
+  // (relaxation ~1e-19 s) and it feels the lift force of a sphere on a
+  // plane; off the drum the charge is frozen and the force is Q E.
+  Vec3 metal_part(double& charge, const Site& at) const {
+    if (!at.drum_normal) return charge * at.field;
+    const Vec3& n = *at.drum_normal;
+    const double en = at.field.dot(n);
+    charge = conductor_induced_charge(at.radius, en, spec_.medium_relative_permittivity);
+    return conductor_lift_force(charge, en) * n;
+  }
+
+  // Insulator: relaxes, charges under the corona, loses everything at the
+  // brush; Q E plus, on the drum, the pull of its image charge.
+  Vec3 insulating_part(double& charge, const ElectricalMaterial& m, const Site& at,
+                       double h) const {
+    if (m.decay_time > 0.0 && std::isfinite(m.decay_time))
+      charge = decay_step(charge, m.decay_time, h);
+    if (at.active) {
+      for (const CoronaZone& zone : spec_.corona) {
+        if (in_zone(zone, spec_.drum.radius, at.position))
+          charge =
+              corona_step(charge, at.radius, m.relative_permittivity, zone, at.field.norm(), h);
+      }
+    }
+    if (at.brush) charge = 0.0;
+    Vec3 force = charge * at.field;
+    if (at.drum_normal)
+      force -= image_force(charge, at.radius, spec_.medium_relative_permittivity) * *at.drum_normal;
+    return force;
+  }
+
+  ElectrostaticsSpec spec_;
+  std::vector<double> unit_radius_;
+  bool has_mixed_ = false;
+  std::vector<std::int32_t> drum_contact_;  // per particle: touching drum contact, or -1
+  std::vector<std::uint8_t> brush_touch_;   // per particle
+  std::vector<double> metal_charge_;        // per particle, mixed materials only
+  std::vector<std::pair<std::uint64_t, double>> mixed_by_id_;  // between steps, sorted
+};
+
+}  // namespace
+
+void add_drag_stage(World& world, DragSpec spec) {
+  require(spec.air.viscosity > 0.0 && spec.air.density > 0.0,
+          "drag: air viscosity and density must be positive");
+  world.add_force_stage([spec, unit = unit_radii(world.model())](World& w, const Contacts&) {
+    Particles& p = w.particles();
+    const auto n = std::ptrdiff_t(p.size());
+#pragma omp parallel for schedule(static) if (p.size() > kParallelMin)
+    for (std::ptrdiff_t s = 0; s < n; ++s) {
+      const auto i = std::size_t(s);
+      p.force[i] += drag_force(spec, p.velocity[i], particle_radius(p, i, unit));
+    }
+  });
+}
+
+void add_electrostatics_stage(World& world, ElectrostaticsSpec spec) {
+  validate(spec, world.model());
+  world.add_force_stage(ElectrostaticsStage(std::move(spec), unit_radii(world.model())));
+}
+
+}  // namespace ces::fields

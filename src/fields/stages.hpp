@@ -1,0 +1,120 @@
+// The separator's force stages (PHYSICS.md §3): air drag, and charging plus
+// electric forces. Each registers with World::add_force_stage, so it runs
+// after this step's collision and before its solve: charges and forces come
+// from this step's positions and contacts, never the previous step's (the
+// public seed code lags them by one step).
+//
+// Plain data in, a stage out: a scene compiler fills the specs. Frame as in
+// fields/electric.hpp: drum axis = z through the origin, gravity −y.
+//
+// The laws are those of spheres; a sphere cluster uses its equivalent sphere,
+// r = scale · (3 V / 4π)^(1/3) with V its shape's volume. Forces act at the
+// centre of mass (no torque). Every particle is updated by its own loop
+// iteration, so charges and forces are bitwise the same for any thread count.
+#pragma once
+#include <limits>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "dynamics/world.hpp"
+#include "fields/charge.hpp"
+#include "fields/electric.hpp"
+
+namespace ces::fields {
+
+// ------------------------------------------------------------------ drag --
+
+enum class DragLaw { Stokes, SchillerNaumann };
+
+// Drag from the particle's velocity relative to still air (PHYSICS §3).
+struct DragSpec {
+  Air air;  // density and viscosity (its permittivity is not used here)
+  DragLaw law = DragLaw::SchillerNaumann;
+};
+
+// Throws std::invalid_argument for a non-positive viscosity or density.
+void add_drag_stage(World& world, DragSpec spec);
+
+// -------------------------------------------------------- electrostatics --
+
+inline constexpr double kNoDecay = std::numeric_limits<double>::infinity();
+
+// Electrical behaviour of one material. The metal fraction w makes the kind:
+// w = 1 a conductor (induced charge on the drum), w = 0 an insulator (corona
+// charge, decay, brush), in between a mixed particle (e.g. a PCB fragment)
+// that carries both charges and feels the w-weighted average of the two
+// forces (PHYSICS §3).
+struct ElectricalMaterial {
+  double metal_fraction = 0.0;         // w in [0, 1]
+  double relative_permittivity = 1.0;  // εr of the insulating part (Pauthenier)
+  double decay_time = kNoDecay;        // τ of the insulating charge, s; 0 or ∞: none
+
+  static ElectricalMaterial conductor() { return {1.0, 1.0, kNoDecay}; }
+  static ElectricalMaterial insulator(double eps_r, double tau = kNoDecay) {
+    return {0.0, eps_r, tau};
+  }
+  static ElectricalMaterial mixed(double w, double eps_r, double tau = kNoDecay) {
+    return {w, eps_r, tau};
+  }
+};
+
+enum class CoronaCharging {
+  Saturation,  // the seed's model: the charge jumps to Q_s on entry
+  Pauthenier,  // Q(t) = Q_s t / (t + τ_c), advanced exactly each step
+};
+
+// Where insulating material takes corona charge: the polar sector from
+// angle_begin counter-clockwise to angle_end (rad, from +x about the drum
+// axis, as Electrode::at_polar), no farther than `depth` above the drum
+// surface, within the drum's width.
+struct CoronaZone {
+  double angle_begin = 0.0;  // rad
+  double angle_end = 0.0;    // rad, angle_begin < angle_end <= angle_begin + 2π
+  double depth = 0.0;        // m above the drum surface
+  CoronaCharging mode = CoronaCharging::Pauthenier;
+  // |E| that charges the particle, V/m; unset: the field model's |E| at the
+  // particle (the static-electrode field has no corona space charge).
+  std::optional<double> field;
+  double current_density = 1e-4;  // J, A/m² (Pauthenier only)
+  double ion_sign = -1.0;         // polarity of the corona ions: ±1
+};
+
+// Charging and electric forces (PHYSICS §3). Per particle and step:
+//  - metal part: while touching the grounded drum, Q_c = (2/3)π³ ε0 εr r²
+//    E·n with n the contact normal out of the drum, and the lift force
+//    0.832 Q_c (E·n) n; off the drum, the last Q_c is kept and the force is
+//    Q_c E.
+//  - insulating part: decays by exp(−h/τ), charges in a corona zone, is
+//    zeroed by a touch of the brush; the force is Q E, plus, touching the
+//    drum, the image force Q² / (4π ε0 εr_medium (2r)²) along −n.
+// "Touching" is decided from this step's contacts: a gap below 1 % of the
+// sphere radius, plus the chord sag a particle carried by a turning body
+// shows at the start of a step (see stages.cpp). E is the field at the
+// particle's centre, taken as zero where |z| > drum.half_width whatever the
+// field model returns: no corona charging and no electric force there (a
+// conductor touching the drum there discharges). Decay and the brush act
+// everywhere.
+//
+// Where the charges live: Particles::charge holds a conductor's induced
+// charge and an insulator's or mixed particle's insulating charge (a scene
+// may preset it). The metal part of a mixed particle keeps its induced
+// charge inside the stage.
+struct ElectrostaticsSpec {
+  // The field model has no default, so it is the one constructor argument.
+  explicit ElectrostaticsSpec(ElectricField model) : field(std::move(model)) {}
+
+  ElectricField field;
+  Drum drum;                       // radius (corona depth) and half-width (forces off beyond)
+  int drum_body = 0;               // Model::bodies index of the grounded drum
+  std::optional<int> brush_body;   // Model::bodies index of the brush
+  std::vector<CoronaZone> corona;  // may be empty: no corona charging
+  std::vector<ElectricalMaterial> materials;  // one per Model material, same order
+  double medium_relative_permittivity = Air{}.relative_permittivity;
+};
+
+// Throws std::invalid_argument naming the offending field when the spec does
+// not fit the world's model (body indices, material count, ranges).
+void add_electrostatics_stage(World& world, ElectrostaticsSpec spec);
+
+}  // namespace ces::fields
