@@ -61,27 +61,6 @@ void SolverBodies::resize(std::size_t n) {
   inv_inertia.resize(n);
 }
 
-void project_cone(double mu, double& gn, double& gt1, double& gt2) {
-  if (mu <= 0.0) {  // frictionless: a half-line
-    gn = std::max(gn, 0.0);
-    gt1 = gt2 = 0.0;
-    return;
-  }
-  // Plain sqrt, not std::hypot: impulses cannot overflow, and hypot's
-  // careful scaling made it a quarter of the solve time.
-  const double s = std::sqrt(gt1 * gt1 + gt2 * gt2);
-  if (s <= mu * gn) return;  // inside the cone
-  if (mu * s <= -gn) {       // inside the polar cone: the apex
-    gn = gt1 = gt2 = 0.0;
-    return;
-  }
-  const double n = (mu * s + gn) / (mu * mu + 1.0);
-  const double scale = mu * n / s;
-  gn = n;
-  gt1 *= scale;
-  gt2 *= scale;
-}
-
 void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
                           std::vector<BilateralRow> rows, double h,
                           const ContactSettings& settings) {
