@@ -16,6 +16,8 @@
 #include <sstream>
 #include <thread>
 
+#include "support.hpp"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -23,54 +25,10 @@ namespace fs = std::filesystem;
 const std::string kBinary = CES_SIM_BINARY;
 const fs::path kScenes = fs::path(CES_TEST_DIR) / "scenes";
 
-struct Outcome {
-  int code = -1;
-  std::string out, err;
-};
-
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-// Per process: ctest runs tests in parallel processes.
-std::string temp_prefix() { return "ces_cli_test_" + std::to_string(::getpid()) + "_"; }
-
-// Removes this process's folders once every test has run.
-class TempCleanup : public ::testing::Environment {
-  void TearDown() override {
-    for (const auto& e : fs::directory_iterator(fs::temp_directory_path()))
-      if (e.path().filename().string().starts_with(temp_prefix())) fs::remove_all(e.path());
-  }
-};
-[[maybe_unused]] const auto* const kCleanup = ::testing::AddGlobalTestEnvironment(new TempCleanup);
-
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / (temp_prefix() + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-// Runs ces-sim with `args` (paths here have no spaces); stdout and stderr are
-// captured through files.
-Outcome ces_sim(const std::string& args) {
-  static int calls = 0;
-  const fs::path tmp =
-      fs::temp_directory_path() / (temp_prefix() + "io_" + std::to_string(calls++));
-  const std::string command =
-      kBinary + " " + args + " > " + tmp.string() + ".out 2> " + tmp.string() + ".err";
-  const int status = std::system(command.c_str());
-  Outcome o;
-  o.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  o.out = read_text(tmp.string() + ".out");
-  o.err = read_text(tmp.string() + ".err");
-  fs::remove(tmp.string() + ".out");
-  fs::remove(tmp.string() + ".err");
-  return o;
-}
+using ces::test::ces_sim;
+using ces::test::fresh_dir;
+using ces::test::Outcome;
+using ces::test::read_text;
 
 std::string scene(const char* name) { return (kScenes / name).string(); }
 

@@ -2,6 +2,7 @@
 // exact particle balance, and the output files (atomic, complete: false on
 // an interrupted run). Simulations are built in C++ here; the command line
 // and scene files are covered by cli_test.cpp.
+#include "support.hpp"
 #include "sim/run.hpp"
 
 #include <gtest/gtest.h>
@@ -84,30 +85,8 @@ void run_feeders(std::shared_ptr<Model> model, const std::vector<Feed>& feeds, i
   }
 }
 
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-// Per process: ctest runs tests in parallel processes.
-std::string temp_prefix() { return "ces_run_test_" + std::to_string(::getpid()) + "_"; }
-
-// Removes this process's folders once every test has run.
-class TempCleanup : public ::testing::Environment {
-  void TearDown() override {
-    for (const auto& e : fs::directory_iterator(fs::temp_directory_path()))
-      if (e.path().filename().string().starts_with(temp_prefix())) fs::remove_all(e.path());
-  }
-};
-[[maybe_unused]] const auto* const kCleanup = ::testing::AddGlobalTestEnvironment(new TempCleanup);
-
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / (temp_prefix() + name);
-  fs::remove_all(dir);
-  return dir;
-}
+using ces::test::fresh_dir;
+using ces::test::read_text;
 
 TEST(RunFeeder, MassRateTracksRateTimesTimeWithinOneParticle) {
   Feed f = make_feed("hopper", box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.05)),

@@ -1,0 +1,25 @@
+// Helpers shared by the tests that write files or run the ces-sim binary.
+#pragma once
+#include <filesystem>
+#include <string>
+
+namespace ces::test {
+
+namespace fs = std::filesystem;
+
+std::string read_text(const fs::path& p);
+
+// An empty folder in the temp directory, private to this test process
+// (ctest runs tests in parallel processes) and removed when it exits.
+fs::path fresh_dir(const std::string& name);
+
+struct Outcome {
+  int code = -1;
+  std::string out, err;
+};
+
+// Runs the ces-sim binary with `args` (no quoting: keep paths free of
+// spaces); stdout and stderr are captured.
+Outcome ces_sim(const std::string& args);
+
+}  // namespace ces::test
