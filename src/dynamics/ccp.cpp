@@ -101,25 +101,8 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     diag_max_ = std::max(diag_max_, row_diag_[j]);
   }
   if (diag_max_ <= 0.0) diag_max_ = 1.0;
-  build_adjacency(B.inv_mass.size());
-}
-
-void CcpProblem::build_adjacency(std::size_t body_count) {
-  const SolverBodies& B = *bodies_;
-  adj_offset_.assign(body_count + 1, 0);
-  auto movable = [&](std::int32_t i) { return B.inv_mass[std::size_t(i)] > 0.0; };
-  for (std::size_t k = 0; k < a_.size(); ++k) {
-    if (movable(a_[k])) ++adj_offset_[std::size_t(a_[k]) + 1];
-    if (movable(b_[k])) ++adj_offset_[std::size_t(b_[k]) + 1];
-  }
-  for (std::size_t i = 0; i < body_count; ++i) adj_offset_[i + 1] += adj_offset_[i];
-  adj_entry_.resize(adj_offset_[body_count]);
-  std::vector<std::uint32_t> fill(adj_offset_.begin(), adj_offset_.end() - 1);
-  // Contacts are visited in order, so each body's list is sorted: fixed sums.
-  for (std::size_t k = 0; k < a_.size(); ++k) {
-    if (movable(a_[k])) adj_entry_[fill[std::size_t(a_[k])]++] = std::uint32_t(k << 1);
-    if (movable(b_[k])) adj_entry_[fill[std::size_t(b_[k])]++] = std::uint32_t(k << 1 | 1);
-  }
+  adj_.build(a_, b_, B.inv_mass.size(),
+             [&](std::int32_t i) { return B.inv_mass[std::size_t(i)] > 0.0; });
 }
 
 void CcpProblem::scatter(const VectorXd& x, bool add_free, std::vector<Vec3>& dv,
@@ -139,8 +122,8 @@ void CcpProblem::scatter(const VectorXd& x, bool add_free, std::vector<Vec3>& dv
   for (std::ptrdiff_t i = 0; i < nb; ++i) {
     const auto u = std::size_t(i);
     Vec3 lin = Vec3::Zero(), ang = Vec3::Zero();
-    for (std::uint32_t e = adj_offset_[u]; e < adj_offset_[u + 1]; ++e) {
-      const std::uint32_t entry = adj_entry_[e];
+    for (std::uint32_t e = adj_.offset[u]; e < adj_.offset[u + 1]; ++e) {
+      const std::uint32_t entry = adj_.entry[e];
       const std::size_t k = entry >> 1;
       if (entry & 1) {
         lin += impulse_[k];

@@ -18,6 +18,7 @@
 
 #include "collision/contacts.hpp"
 #include "common/math.hpp"
+#include "dynamics/adjacency.hpp"
 #include "dynamics/model.hpp"
 
 namespace ces {
@@ -89,7 +90,6 @@ class CcpProblem {
   // dv = M^-1 J^T x (+ v_free); y = J v (+ b).
   void scatter(const VectorXd& x, bool add_free, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
   void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, VectorXd& y) const;
-  void build_adjacency(std::size_t body_count);
 
   const SolverBodies* bodies_ = nullptr;
   // Contacts, structure of arrays.
@@ -98,8 +98,7 @@ class CcpProblem {
   std::vector<double> mu_, bias_, diag_;
   std::vector<BilateralRow> rows_;
   std::vector<double> row_diag_;
-  // Body -> (contact << 1 | side) adjacency for bodies with finite mass.
-  std::vector<std::uint32_t> adj_offset_, adj_entry_;
+  ContactAdjacency adj_;  // bodies with finite mass
   double diag_max_ = 1.0;
   mutable std::vector<Vec3> dv_, dw_, impulse_;
   mutable std::vector<double> partial_sum_, partial_max_;

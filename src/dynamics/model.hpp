@@ -138,6 +138,32 @@ struct ContactSettings {
   double restitution_threshold = 0.01;  // m/s: slower impacts are plastic
 };
 
+// Contact law: DVI (impulses from the cone complementarity problem, the
+// default) or DEM (penalty forces, explicit integration; dynamics/dem.hpp), a
+// baseline for the work-precision comparison. Collision detection is shared.
+enum class ContactModel { DVI, DEM };
+
+struct ElasticProperties {
+  double youngs_modulus = 1e8;  // Pa; DEM codes soften real moduli to afford the step
+  double poisson_ratio = 0.3;
+};
+
+// Hertz-Mindlin settings. Elastic constants are per material (index as in
+// MaterialTable; materials past the end use `defaults`), so a steel wall and
+// a plastic grain give the right effective modulus E*. Friction and
+// restitution come from the MaterialTable, as for DVI, so both models see
+// the same pair coefficients.
+struct DemSettings {
+  ElasticProperties defaults;
+  std::vector<ElasticProperties> materials;
+  // e -> 0 needs unbounded damping, which no explicit step resolves: lower
+  // restitutions (the material default is 0) are raised to this.
+  double min_restitution = 0.05;
+  const ElasticProperties& elastic(int material) const {
+    return std::size_t(material) < materials.size() ? materials[std::size_t(material)] : defaults;
+  }
+};
+
 struct Model {
   double step = 1e-3;  // s
   Vec3 gravity = Vec3(0, -9.81, 0);
@@ -148,6 +174,8 @@ struct Model {
   std::vector<Motor> motors;
   SolverSettings solver;
   ContactSettings contact;
+  ContactModel contact_model = ContactModel::DVI;
+  DemSettings dem;
   int threads = 0;  // 0: OpenMP default
 };
 

@@ -151,11 +151,17 @@ const StepStats& World::step() {
 
   t0 = Clock::now();
   build_solver_bodies();
+  const bool dem = m.contact_model == ContactModel::DEM;
+  if (dem) dem_contacts(stats);
   rows_.clear();
   stats.joint_drift = joint_rows(m, joint_frames_, bodies_, int(particles_.size()), h, rows_);
-  problem_.assemble(contacts_, solver_bodies_, rows_, h, m.contact);
+  // Under DEM the contact forces are already in v_free: the CCP keeps only
+  // the joints' rows, so joints and motors work with either contact model.
+  static const Contacts kNoContacts;
+  const Contacts& ccp_contacts = dem ? kNoContacts : contacts_;
+  problem_.assemble(ccp_contacts, solver_bodies_, rows_, h, m.contact);
   if (m.solver.warm_start)
-    problem_.warm_start(contacts_.key, prev_keys_, prev_impulse_, prev_gamma_, gamma_);
+    problem_.warm_start(ccp_contacts.key, prev_keys_, prev_impulse_, prev_gamma_, gamma_);
   else
     gamma_.setZero(std::ptrdiff_t(problem_.row_count()));
   for (std::size_t k = 0; k < contacts_.size(); ++k) {
@@ -171,7 +177,7 @@ const StepStats& World::step() {
 
   t0 = Clock::now();
   integrate(h);
-  remember_impulses();
+  if (!dem) remember_impulses();
   time_ += h;
   set_body_motion(time_);
   stats.seconds.integrate = seconds_since(t0);
@@ -184,6 +190,14 @@ const StepStats& World::step() {
   for (Hook& hook : post_) hook(*this);
   stats_.seconds.hooks += seconds_since(t0);
   return stats_;
+}
+
+void World::dem_contacts(StepStats& stats) {
+  const Model& m = *model_;
+  constexpr double kRayleighFraction = 0.2;  // the usual DEM stability margin
+  stats.rayleigh_time = rayleigh_time(m, particles_);
+  stats.step_above_rayleigh_limit = m.step > kRayleighFraction * stats.rayleigh_time;
+  dem_.apply(m, particles_, contacts_, m.step, solver_bodies_);
 }
 
 void World::integrate(double h) {

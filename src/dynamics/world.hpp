@@ -1,6 +1,8 @@
 // The stepper: state arrays advanced by a fixed pipeline of stages
 //   pre-step hooks (feeds) -> collide -> force stages (fields) -> assemble
 //   -> solve CCP -> integrate -> post-step hooks (collectors, observers).
+// Under ContactModel::DEM, "assemble" also computes the penalty contact
+// forces (dynamics/dem.hpp) and the CCP keeps only the joints' rows.
 #pragma once
 #include <Eigen/Core>
 #include <functional>
@@ -10,6 +12,7 @@
 #include "collision/collide.hpp"
 #include "collision/contacts.hpp"
 #include "dynamics/ccp.hpp"
+#include "dynamics/dem.hpp"
 #include "dynamics/joints.hpp"
 #include "dynamics/model.hpp"
 #include "dynamics/state.hpp"
@@ -32,6 +35,10 @@ struct StepStats {
   double max_penetration = 0.0;           // m, at the start of the step
   double max_penetration_relative = 0.0;  // / radius of the smaller sphere
   double joint_drift = 0.0;               // m, at the start of the step
+  // DEM only: the smallest particle's Rayleigh time (s; 0 under DVI), and
+  // whether the step exceeds 20 % of it (explicit contact is then unreliable).
+  double rayleigh_time = 0.0;
+  bool step_above_rayleigh_limit = false;
   StageTimes seconds;
 };
 
@@ -75,6 +82,7 @@ class World {
  private:
   void set_body_motion(double t);
   void build_solver_bodies();
+  void dem_contacts(StepStats& stats);
   void integrate(double h);
   void remember_impulses();
 
@@ -99,6 +107,7 @@ class World {
   Eigen::VectorXd prev_gamma_;
   std::vector<Vec3> impulse_scratch_;
   std::vector<std::size_t> order_scratch_;
+  DemContacts dem_;
   StepStats stats_;
 };
 
