@@ -4,6 +4,8 @@
 //   ces-sim validate SCENE [--set ...]
 //   ces-sim schema
 //   ces-sim compare DIR_A DIR_B [--tol-count N] [--tol-mass F] [--tol-w1 MM]
+//   ces-sim study SCENE --vary key=v1,v2... [--reference DIR] [-o DIR] [--jobs N]
+//                 [--case K] [--list-cases]
 //   ces-sim --version
 //
 // Exit codes (also in --help):
@@ -27,6 +29,7 @@
 #include "output/files.hpp"
 #include "scene/scene.hpp"
 #include "sim/run.hpp"
+#include "study/study.hpp"
 
 namespace {
 
@@ -113,6 +116,71 @@ int compare(const Args& args) {
   return kSuccess;
 }
 
+struct StudyArgs {
+  ces::study::Options options;
+  std::vector<std::string> vary;
+  std::optional<std::size_t> only_case;
+  bool list = false;
+};
+
+constexpr const char* kStudyHelp =
+    "Cases run in parallel as separate processes, in DIR/case_K. To spread them over\n"
+    "machines, run single cases, then the same study command without --case: cases\n"
+    "already complete are not rerun, it only measures and writes study.csv/.svg:\n"
+    "  ces-sim study s.yaml --vary time.step=2ms,1ms --list-cases -o st | cut -d' ' -f1 |\n"
+    "    parallel ces-sim study s.yaml --vary time.step=2ms,1ms -o st --case {}\n"
+    "  # Slurm: sbatch --array=0-1 --wrap 'ces-sim study s.yaml --vary time.step=2ms,1ms\n"
+    "  #   -o st --case $SLURM_ARRAY_TASK_ID'\n"
+    "  ces-sim study s.yaml --vary time.step=2ms,1ms -o st\n";
+
+CLI::App* add_study_command(CLI::App& app, Args& args, StudyArgs& study) {
+  CLI::App* cmd = app.add_subcommand(
+      "study", "Error against run time: run a scene over a grid of settings, measure each run "
+               "against the finest (study.csv, study.svg, a table)");
+  cmd->add_option("scene", args.scene, "Scene file")->required();
+  add_scene_options(*cmd, args);
+  cmd->add_option("--vary", study.vary, "An axis of the grid: key.path=v1,v2,...")
+      ->type_name("K=V,...")
+      ->required();
+  cmd->add_option("--reference", study.options.reference,
+                  "Output folder to measure against (default: the finest case: smallest "
+                  "time.step, then largest solver.max_iterations)");
+  cmd->add_option("-o,--out", study.options.out_dir, "Study folder (default: study)");
+  cmd->add_option("--jobs", study.options.jobs, "Cases at once (default: the number of cores)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--case", study.only_case, "Run only case K (see --list-cases)");
+  cmd->add_flag("--list-cases", study.list, "Print one line per case: K and its --set list");
+  cmd->footer(kStudyHelp);
+  return cmd;
+}
+
+int study(const Args& args, StudyArgs& study) {
+  try {
+    ces::study::Options& o = study.options;
+    o.scene = args.scene;
+    o.base_sets = load_options(args).overrides;
+    o.seed = args.seed;
+    o.threads = args.threads;
+    o.only_case = study.only_case;
+    for (const std::string& v : study.vary) o.axes.push_back(ces::study::parse_axis(v));
+    if (study.list) {
+      std::fputs(ces::study::list_cases(o).c_str(), stdout);
+      return kSuccess;
+    }
+    return ces::study::run(o);
+  } catch (const ces::scene::SceneError& e) {
+    for (const ces::scene::Diagnostic& d : e.diagnostics())
+      std::fprintf(stderr, "%s\n", d.str().c_str());
+    return kBadInput;
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "ces-sim: %s\n", e.what());
+    return kBadInput;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "ces-sim: study: %s\n", e.what());
+    return kRunFailed;
+  }
+}
+
 // Runs the chosen command; maps failures to the documented exit codes.
 int dispatch(const CLI::App& app, const CLI::App* validate_cmd, const CLI::App* schema_cmd,
              const CLI::App* compare_cmd, const Args& args) {
@@ -178,6 +246,8 @@ int main(int argc, char** argv) {
       ->add_option("--tol-w1", args.tolerances.tol_w1_mm,
                    "Wasserstein-1 distance (mm) between landing distributions (default 0)")
       ->check(CLI::NonNegativeNumber);
+  StudyArgs study_args;
+  CLI::App* study_cmd = add_study_command(app, args, study_args);
   app.require_subcommand(0, 1);
 
   try {
@@ -185,5 +255,6 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? kSuccess : kBadInput;
   }
+  if (study_cmd->parsed()) return study(args, study_args);
   return dispatch(app, validate_cmd, schema_cmd, compare_cmd, args);
 }

@@ -13,17 +13,6 @@
 namespace ces::output {
 namespace {
 
-struct Table {
-  std::vector<std::string> header;
-  std::vector<std::vector<std::string>> rows;
-
-  std::size_t column(const std::string& name, const std::filesystem::path& file) const {
-    const auto it = std::find(header.begin(), header.end(), name);
-    if (it == header.end()) throw IoError(file.string() + ": no column '" + name + "'");
-    return std::size_t(it - header.begin());
-  }
-};
-
 std::vector<std::string> split(const std::string& line) {
   std::vector<std::string> fields(1);
   for (const char c : line) {
@@ -33,23 +22,6 @@ std::vector<std::string> split(const std::string& line) {
       fields.back() += c;
   }
   return fields;
-}
-
-Table read_table(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw IoError("cannot read " + file.string());
-  Table t;
-  std::string line;
-  if (!std::getline(in, line)) throw IoError(file.string() + ": empty file");
-  t.header = split(line);
-  for (int n = 2; std::getline(in, line); ++n) {
-    if (line.empty()) continue;
-    t.rows.push_back(split(line));
-    if (t.rows.back().size() != t.header.size())
-      throw IoError(file.string() + ":" + std::to_string(n) + ": expected " +
-                    std::to_string(t.header.size()) + " fields");
-  }
-  return t;
 }
 
 double number(const std::string& s) {
@@ -144,20 +116,6 @@ void compare_tables(const std::string& file, const Table& a, const Table& b,
   r.notes.push_back(file + ": " + std::to_string(a.rows.size()) + " rows compared");
 }
 
-// Landing positions and masses per "material at collector".
-using Landings = std::map<std::string, std::vector<std::pair<double, double>>>;
-
-Landings landings(const std::filesystem::path& file) {
-  const Table t = read_table(file);
-  const std::size_t along = t.column("along_m", file), mass = t.column("mass_kg", file),
-                    material = t.column("material", file), collector = t.column("collector", file);
-  Landings out;
-  for (const auto& row : t.rows)
-    out[row[material] + " at " + row[collector]].emplace_back(number(row[along]),
-                                                              number(row[mass]));
-  return out;
-}
-
 void compare_landings(const Landings& a, const Landings& b, const CompareOptions& o,
                       CompareResult& r) {
   std::vector<std::string> keys;
@@ -182,6 +140,40 @@ void compare_landings(const Landings& a, const Landings& b, const CompareOptions
 }
 
 }  // namespace
+
+std::size_t Table::column(const std::string& name, const std::filesystem::path& file) const {
+  const auto it = std::find(header.begin(), header.end(), name);
+  if (it == header.end()) throw IoError(file.string() + ": no column '" + name + "'");
+  return std::size_t(it - header.begin());
+}
+
+Table read_table(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw IoError("cannot read " + file.string());
+  Table t;
+  std::string line;
+  if (!std::getline(in, line)) throw IoError(file.string() + ": empty file");
+  t.header = split(line);
+  for (int n = 2; std::getline(in, line); ++n) {
+    if (line.empty()) continue;
+    t.rows.push_back(split(line));
+    if (t.rows.back().size() != t.header.size())
+      throw IoError(file.string() + ":" + std::to_string(n) + ": expected " +
+                    std::to_string(t.header.size()) + " fields");
+  }
+  return t;
+}
+
+Landings read_landings(const std::filesystem::path& file) {
+  const Table t = read_table(file);
+  const std::size_t along = t.column("along_m", file), mass = t.column("mass_kg", file),
+                    material = t.column("material", file), collector = t.column("collector", file);
+  Landings out;
+  for (const auto& row : t.rows)
+    out[row[material] + " at " + row[collector]].emplace_back(number(row[along]),
+                                                              number(row[mass]));
+  return out;
+}
 
 double wasserstein1(std::vector<std::pair<double, double>> a,
                     std::vector<std::pair<double, double>> b) {
@@ -210,7 +202,7 @@ CompareResult compare_outputs(const std::filesystem::path& a, const std::filesys
   CompareResult r;
   for (const char* file : {"bins.csv", "products.csv"})
     compare_tables(file, read_table(a / file), read_table(b / file), options, r);
-  compare_landings(landings(a / "crossings.csv"), landings(b / "crossings.csv"), options, r);
+  compare_landings(read_landings(a / "crossings.csv"), read_landings(b / "crossings.csv"), options, r);
   return r;
 }
 

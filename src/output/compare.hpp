@@ -11,6 +11,7 @@
 #pragma once
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -28,6 +29,20 @@ struct CompareResult {
   std::vector<std::string> notes;        // what was compared, e.g. W1 values
   bool agree() const { return differences.empty(); }
 };
+
+// A CSV table as written by output/tables (no quoting). Throws IoError when
+// the file is missing, empty or ragged, or lacks a requested column.
+struct Table {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+  std::size_t column(const std::string& name, const std::filesystem::path& file) const;
+};
+Table read_table(const std::filesystem::path& file);
+
+// Landing positions along the collector axis and masses, per
+// "material at collector", from a crossings.csv.
+using Landings = std::map<std::string, std::vector<std::pair<double, double>>>;
+Landings read_landings(const std::filesystem::path& crossings_csv);
 
 // Throws IoError when a folder lacks a file or a file is not a table.
 CompareResult compare_outputs(const std::filesystem::path& a, const std::filesystem::path& b,

@@ -1,0 +1,408 @@
+#include "study/study.hpp"
+
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+
+#include "output/compare.hpp"
+#include "output/files.hpp"
+#include "output/format.hpp"
+#include "scene/scene.hpp"
+
+namespace ces::study {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr const char* kCaseStamp = "study_case.txt";  // the command line a case ran with
+
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> out(1);
+  for (const char c : s) {
+    if (c == sep)
+      out.emplace_back();
+    else
+      out.back().push_back(c);
+  }
+  return out;
+}
+
+fs::path case_dir(const Options& o, const Case& c) {
+  return o.out_dir / ("case_" + std::to_string(c.index));
+}
+
+std::string joined(const std::vector<std::string>& args) {
+  std::string s;
+  for (const std::string& a : args) s += (s.empty() ? "" : " ") + a;
+  return s;
+}
+
+std::string read_file(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// A case is done when its folder holds a complete run of the same command.
+bool already_done(const Options& o, const Case& c) {
+  const fs::path dir = case_dir(o, c);
+  if (read_file(dir / kCaseStamp) != joined(case_arguments(o, c)) + "\n") return false;
+  std::ifstream in(dir / "summary.json");
+  const auto j = nlohmann::json::parse(in, nullptr, false);
+  return !j.is_discarded() && j.value("complete", false);
+}
+
+int cores() { return std::max(1, int(std::thread::hardware_concurrency())); }
+
+pid_t spawn(const Options& o, const Case& c) {
+  const fs::path dir = case_dir(o, c);
+  fs::create_directories(dir);
+  std::vector<std::string> args = case_arguments(o, c);
+  // Cases share the cores: without a choice, each gets its share.
+  const int jobs = o.jobs > 0 ? o.jobs : cores();
+  const int threads = o.threads.value_or(std::max(1, cores() / jobs));
+  args.insert(args.end(), {"--threads", std::to_string(threads)});
+  const std::string log = (dir / "log.txt").string();
+  std::vector<char*> argv{const_cast<char*>(o.binary.c_str())};
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error("study: fork failed");
+  if (pid > 0) return pid;
+  // Child: only async-signal-safe calls (no allocation) until exec.
+  const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  if (fd >= 0) {
+    ::dup2(fd, STDOUT_FILENO);
+    ::dup2(fd, STDERR_FILENO);
+  }
+  ::execv(o.binary.c_str(), argv.data());
+  ::_exit(127);
+}
+
+// Runs the cases not yet done, at most `jobs` processes at once; returns
+// whether all of them exited 0.
+bool run_cases(const Options& o, const std::vector<Case>& cases) {
+  const int jobs = o.jobs > 0 ? o.jobs : cores();
+  std::map<pid_t, const Case*> running;
+  bool ok = true;
+  auto reap = [&] {
+    int status = 0;
+    const pid_t pid = ::wait(&status);
+    if (pid <= 0) return;
+    const Case& c = *running.at(pid);
+    running.erase(pid);
+    const bool success = WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    if (success)
+      output::write_file_atomic(case_dir(o, c) / kCaseStamp, joined(case_arguments(o, c)) + "\n");
+    else
+      std::fprintf(stderr, "study: case %zu failed, see %s\n", c.index,
+                   (case_dir(o, c) / "log.txt").c_str());
+    ok = ok && success;
+  };
+  for (const Case& c : cases) {
+    if (already_done(o, c)) continue;
+    while (int(running.size()) >= jobs) reap();
+    running[spawn(o, c)] = &c;
+  }
+  while (!running.empty()) reap();
+  return ok;
+}
+
+double max_abs_difference(const output::Table& a, const output::Table& b, const fs::path& file,
+                          const std::string& column) {
+  const std::size_t ca = a.column(column, file), cb = b.column(column, file);
+  double worst = 0.0;
+  for (const auto& ra : a.rows)
+    for (const auto& rb : b.rows)
+      if (ra[0] == rb[0] && ra[1] == rb[1])  // same collector and product
+        worst = std::max(worst, std::abs(std::stod(ra[ca]) - std::stod(rb[cb])));
+  return worst;
+}
+
+Row read_row(const Options& o, const Case& c, const fs::path& reference) {
+  Row r;
+  r.c = c;
+  const fs::path dir = case_dir(o, c);
+  std::ifstream in(dir / "summary.json");
+  const auto j = nlohmann::json::parse(in, nullptr, false);
+  if (j.is_discarded()) return r;
+  r.complete = j.value("complete", false);
+  r.wall_s = j["wall_time_s"].value("total", 0.0);
+  const auto& s = j["solver"];
+  r.method = s.value("method", std::string());
+  r.residual_p95 = s.value("residual_p95_mps", 0.0);
+  r.steps_at_cap = s.value("steps_at_iteration_cap", 0L);
+  r.penetration_relative = s.value("max_penetration_relative", 0.0);
+  if (r.complete) r.errors = measure(dir, reference);
+  return r;
+}
+
+std::string fmt(double v) { return std::isinf(v) ? "inf" : output::format_number(v); }
+
+// ---------------------------------------------------------------- the plot
+
+// A line of the plot: the values of the axes other than step and iteration
+// cap (those move along a line), or the run's solver method.
+std::string series(const Row& r) {
+  std::string label;
+  for (const auto& [k, v] : r.c.sets)
+    if (k != "time.step" && k != "solver.max_iterations") label += (label.empty() ? "" : " ") + v;
+  return label.empty() ? r.method : label;
+}
+
+std::string xml_escaped(const std::string& s) {
+  std::string out;
+  for (const char c : s) out += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : std::string(1, c);
+  return out;
+}
+
+struct Frame {  // log10 ranges mapped to the plot area
+  double x0, x1, y0, y1;
+  static constexpr double left = 80, top = 40, width = 420, height = 320;
+  double px(double v) const { return left + (std::log10(v) - x0) / (x1 - x0) * width; }
+  double py(double v) const { return top + height - (std::log10(v) - y0) / (y1 - y0) * height; }
+};
+
+// Whole decades around [lo, hi], at least one wide.
+std::pair<double, double> decades(double lo, double hi) {
+  double a = std::floor(std::log10(lo)), b = std::ceil(std::log10(hi));
+  if (b <= a) b = a + 1;
+  return {a, b};
+}
+
+void axes_svg(const Frame& f, std::ostringstream& out) {
+  out << "<rect x='" << f.left << "' y='" << f.top << "' width='" << f.width << "' height='"
+      << f.height << "' fill='none' stroke='black'/>\n";
+  for (double d = f.x0; d <= f.x1; ++d) {
+    const double x = f.px(std::pow(10.0, d));
+    out << "<line x1='" << x << "' y1='" << f.top + f.height << "' x2='" << x << "' y2='"
+        << f.top + f.height + 5 << "' stroke='black'/><text x='" << x << "' y='"
+        << f.top + f.height + 20 << "' text-anchor='middle'>1e" << d << "</text>\n";
+  }
+  for (double d = f.y0; d <= f.y1; ++d) {
+    const double y = f.py(std::pow(10.0, d));
+    out << "<line x1='" << f.left - 5 << "' y1='" << y << "' x2='" << f.left << "' y2='" << y
+        << "' stroke='black'/><text x='" << f.left - 8 << "' y='" << y + 4
+        << "' text-anchor='end'>1e" << d << "</text>\n";
+  }
+  out << "<text x='" << f.left + f.width / 2 << "' y='" << f.top + f.height + 45
+      << "' text-anchor='middle'>wall time (s)</text>\n"
+      << "<text transform='translate(20," << f.top + f.height / 2
+      << ") rotate(-90)' text-anchor='middle'>landing error, max W1 over materials (mm)</text>\n"
+      << "<text x='" << f.left << "' y='22'>Work-precision (the reference, error 0, is not "
+         "drawn)</text>\n";
+}
+
+}  // namespace
+
+std::string study_svg(const std::vector<Row>& rows) {
+  std::map<std::string, std::vector<std::pair<double, double>>> lines;  // series -> (wall, error)
+  double wmin = 1e300, wmax = 0, emin = 1e300, emax = 0;
+  for (const Row& r : rows) {
+    const double e = r.errors.w1_max_mm;
+    if (!r.complete || r.wall_s <= 0 || !(e > 0) || std::isinf(e)) continue;  // no log of 0
+    lines[series(r)].emplace_back(r.wall_s, e);
+    wmin = std::min(wmin, r.wall_s), wmax = std::max(wmax, r.wall_s);
+    emin = std::min(emin, e), emax = std::max(emax, e);
+  }
+  if (lines.empty()) wmin = emin = 1.0, wmax = emax = 10.0;
+  const auto [x0, x1] = decades(wmin, wmax);
+  const auto [y0, y1] = decades(emin, emax);
+  const Frame f{x0, x1, y0, y1};
+  std::ostringstream out;
+  out << "<svg xmlns='http://www.w3.org/2000/svg' width='680' height='430' "
+         "font-family='sans-serif' font-size='12'>\n<rect width='100%' height='100%' "
+         "fill='white'/>\n";
+  axes_svg(f, out);
+  static const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
+  int n = 0;
+  for (auto& [name, points] : lines) {
+    std::sort(points.begin(), points.end());
+    const char* colour = colours[n % 6];
+    out << "<polyline fill='none' stroke='" << colour << "' points='";
+    for (const auto& [w, e] : points) out << f.px(w) << "," << f.py(e) << " ";
+    out << "'/>\n";
+    for (const auto& [w, e] : points)
+      out << "<circle cx='" << f.px(w) << "' cy='" << f.py(e) << "' r='3' fill='" << colour
+          << "'/>\n";
+    const double ly = f.top + 10 + 18 * n++;
+    out << "<line x1='515' y1='" << ly << "' x2='535' y2='" << ly << "' stroke='" << colour
+        << "' stroke-width='2'/><text x='540' y='" << ly + 4 << "'>" << xml_escaped(name) << "</text>\n";
+  }
+  out << "</svg>\n";
+  return out.str();
+}
+
+Axis parse_axis(const std::string& spec) {
+  const auto eq = spec.find('=');
+  if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
+    throw std::invalid_argument("--vary " + spec + ": expected key.path=v1,v2,...");
+  Axis a{spec.substr(0, eq), split(spec.substr(eq + 1), ',')};
+  for (const std::string& v : a.values)
+    if (v.empty()) throw std::invalid_argument("--vary " + spec + ": empty value");
+  return a;
+}
+
+std::vector<Case> make_cases(const std::vector<Axis>& axes) {
+  std::vector<Case> cases(1);
+  for (const Axis& axis : axes) {
+    std::vector<Case> next;
+    for (const Case& c : cases)
+      for (const std::string& v : axis.values) {
+        next.push_back(c);
+        next.back().sets.emplace_back(axis.key, v);
+      }
+    cases = std::move(next);
+  }
+  for (std::size_t k = 0; k < cases.size(); ++k) cases[k].index = k;
+  return cases;
+}
+
+std::vector<std::string> case_arguments(const Options& o, const Case& c) {
+  std::vector<std::string> args{o.scene, "-o", case_dir(o, c).string(), "--quiet"};
+  for (const Sets* sets : {&o.base_sets, &c.sets})
+    for (const auto& [k, v] : *sets) {
+      args.push_back("--set");
+      args.push_back(k + "=" + v);
+    }
+  if (o.seed) args.insert(args.end(), {"--seed", std::to_string(*o.seed)});
+  return args;
+}
+
+std::size_t finest_case(const Options& o, const std::vector<Case>& cases) {
+  std::size_t best = 0;
+  std::pair<double, int> best_key{std::numeric_limits<double>::infinity(), 0};
+  for (const Case& c : cases) {
+    scene::LoadOptions lo;
+    lo.overrides = o.base_sets;
+    lo.overrides.insert(lo.overrides.end(), c.sets.begin(), c.sets.end());
+    const Simulation sim = scene::load(o.scene, lo);
+    // Smallest step first, then the largest iteration cap.
+    const std::pair<double, int> key{sim.model->step, -sim.model->solver.max_iterations};
+    if (key < best_key) {
+      best_key = key;
+      best = c.index;
+    }
+  }
+  return best;
+}
+
+Errors measure(const fs::path& run, const fs::path& reference) {
+  Errors e;
+  const output::Landings a = output::read_landings(run / "crossings.csv");
+  const output::Landings b = output::read_landings(reference / "crossings.csv");
+  for (const auto* side : {&a, &b})
+    for (const auto& [key, samples] : *side) {
+      const auto ia = a.find(key), ib = b.find(key);
+      e.w1_mm[key] = ia == a.end() || ib == b.end()
+                         ? std::numeric_limits<double>::infinity()
+                         : 1e3 * output::wasserstein1(ia->second, ib->second);
+    }
+  for (const auto& [key, w1] : e.w1_mm) e.w1_max_mm = std::max(e.w1_max_mm, w1);
+  const fs::path pa = run / "products.csv";
+  const output::Table ta = output::read_table(pa), tb = output::read_table(reference / "products.csv");
+  e.grade = max_abs_difference(ta, tb, pa, "grade");
+  e.recovery = max_abs_difference(ta, tb, pa, "recovery");
+  std::ifstream in(run / "summary.json");
+  const auto j = nlohmann::json::parse(in, nullptr, false);
+  e.balance_exact = !j.is_discarded() && j["balance"].value("exact", false);
+  return e;
+}
+
+std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& rows) {
+  std::vector<std::string> keys;  // every "material at collector" of any row
+  for (const Row& r : rows)
+    for (const auto& [k, v] : r.errors.w1_mm)
+      if (std::find(keys.begin(), keys.end(), k) == keys.end()) keys.push_back(k);
+  std::sort(keys.begin(), keys.end());
+  std::string text = "case";
+  for (const Axis& a : axes) text += "," + a.key;
+  text += ",complete,wall_time_s,w1_max_mm";
+  for (const std::string& k : keys) text += ",w1_mm " + k;
+  text += ",grade_error,recovery_error,balance_exact,solver_method,residual_p95_mps,"
+          "steps_at_iteration_cap,max_penetration_relative\n";
+  for (const Row& r : rows) {
+    std::vector<std::string> f{std::to_string(r.c.index)};
+    for (const auto& [k, v] : r.c.sets) f.push_back(v);
+    f.insert(f.end(), {r.complete ? "true" : "false", fmt(r.wall_s), fmt(r.errors.w1_max_mm)});
+    for (const std::string& k : keys) {
+      const auto it = r.errors.w1_mm.find(k);
+      f.push_back(it == r.errors.w1_mm.end() ? std::string() : fmt(it->second));
+    }
+    f.insert(f.end(), {fmt(r.errors.grade), fmt(r.errors.recovery),
+                       r.errors.balance_exact ? "true" : "false", r.method, fmt(r.residual_p95),
+                       std::to_string(r.steps_at_cap), fmt(r.penetration_relative)});
+    for (std::size_t i = 0; i < f.size(); ++i) text.append(i ? "," : "").append(f[i]);
+    text += '\n';
+  }
+  return text;
+}
+
+std::string study_table(const std::vector<Axis>& axes, const std::vector<Row>& rows) {
+  std::vector<std::vector<std::string>> cells{{"case"}};
+  for (const Axis& a : axes) cells[0].push_back(a.key);
+  cells[0].insert(cells[0].end(), {"wall s", "W1 max mm", "grade err", "recovery err", "balance",
+                                   "residual p95 m/s"});
+  for (const Row& r : rows) {
+    std::vector<std::string> line{std::to_string(r.c.index)};
+    for (const auto& [k, v] : r.c.sets) line.push_back(v);
+    if (r.complete)
+      line.insert(line.end(), {fmt(r.wall_s), fmt(r.errors.w1_max_mm), fmt(r.errors.grade),
+                               fmt(r.errors.recovery),
+                               r.errors.balance_exact ? "exact" : "NOT EXACT", fmt(r.residual_p95)});
+    else
+      line.push_back("FAILED");
+    cells.push_back(std::move(line));
+  }
+  std::vector<std::size_t> width(cells[0].size(), 0);
+  for (const auto& line : cells)
+    for (std::size_t i = 0; i < line.size(); ++i) width[i] = std::max(width[i], line[i].size());
+  std::string out;
+  for (const auto& line : cells) {
+    for (std::size_t i = 0; i < line.size(); ++i)
+      out += line[i] + std::string(i + 1 < line.size() ? width[i] - line[i].size() + 2 : 0, ' ');
+    out += '\n';
+  }
+  return out;
+}
+
+std::string list_cases(const Options& o) {
+  std::string text;
+  for (const Case& c : make_cases(o.axes)) {
+    text += std::to_string(c.index) + " ";
+    for (const auto& [k, v] : c.sets) text += " --set " + k + "=" + v;
+    text += "\n";
+  }
+  return text;
+}
+
+int run(const Options& o) {
+  const std::vector<Case> cases = make_cases(o.axes);
+  if (o.only_case) {
+    if (*o.only_case >= cases.size())
+      throw std::invalid_argument("--case " + std::to_string(*o.only_case) + ": only " +
+                                  std::to_string(cases.size()) + " cases");
+    return run_cases(o, {cases[*o.only_case]}) ? 0 : 3;
+  }
+  const bool ok = run_cases(o, cases);
+  const fs::path reference =
+      o.reference.empty() ? case_dir(o, cases[finest_case(o, cases)]) : o.reference;
+  std::vector<Row> rows;
+  for (const Case& c : cases) rows.push_back(read_row(o, c, reference));
+  output::write_file_atomic(o.out_dir / "study.csv", study_csv(o.axes, rows));
+  output::write_file_atomic(o.out_dir / "study.svg", study_svg(rows));
+  std::printf("reference: %s\n%s", reference.c_str(), study_table(o.axes, rows).c_str());
+  return ok ? 0 : 3;
+}
+
+}  // namespace ces::study

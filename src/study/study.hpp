@@ -1,0 +1,94 @@
+// `ces-sim study`: error against run time (DESIGN.md §9, issue 6).
+//
+// A study runs one scene over every combination of --vary axes (each a list
+// of --set values), each case a normal run in DIR/case_K, and measures every
+// run against a reference: the finest case (smallest time.step, then largest
+// solver.max_iterations) or a given output folder. Errors are what users
+// care about: the landing distribution per "material at collector"
+// (Wasserstein-1, mm), products' grade and recovery (max abs difference) and
+// the particle mass balance. Results: DIR/study.csv, DIR/study.svg (error vs
+// wall time, log-log, a line per solver method) and a table on stdout.
+//
+// Cases run as separate processes (this binary, fork/exec), at most `jobs`
+// at once, so they are independent and can also be spread over machines
+// with --list-cases / --case K. A case whose folder already holds a complete
+// run of the same command line is not run again: after a job array, the
+// study command without --case only measures.
+#pragma once
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace ces::study {
+
+using Sets = std::vector<std::pair<std::string, std::string>>;
+
+struct Axis {
+  std::string key;
+  std::vector<std::string> values;
+};
+// "key.path=v1,v2,..."; throws std::invalid_argument.
+Axis parse_axis(const std::string& spec);
+
+struct Case {
+  std::size_t index = 0;
+  Sets sets;  // one per axis, in axis order
+};
+// Every combination; the last axis varies fastest.
+std::vector<Case> make_cases(const std::vector<Axis>& axes);
+
+struct Options {
+  std::string scene;
+  std::vector<Axis> axes;
+  Sets base_sets;                      // the user's own --set, applied first
+  std::optional<std::uint64_t> seed;
+  std::optional<int> threads;          // per case; default: cores / jobs
+  std::filesystem::path out_dir = "study";
+  std::filesystem::path reference;     // empty: the finest case
+  int jobs = 0;                        // 0: the number of cores
+  std::optional<std::size_t> only_case;
+  std::string binary = "/proc/self/exe";
+};
+
+// The ces-sim arguments (after the program name) that run case c, but for
+// --threads: each machine picks its own, and results do not depend on it
+// (bitwise), so a case run elsewhere still counts as the same case.
+std::vector<std::string> case_arguments(const Options& o, const Case& c);
+
+// Index of the finest case, from each case's compiled scene.
+std::size_t finest_case(const Options& o, const std::vector<Case>& cases);
+
+struct Errors {
+  std::map<std::string, double> w1_mm;  // per "material at collector"; inf: collected in one only
+  double w1_max_mm = 0.0;
+  double grade = 0.0, recovery = 0.0;   // max abs difference over products
+  bool balance_exact = false;           // this run's fed = collected + lost + active
+};
+// Throws output::IoError when a folder lacks a table.
+Errors measure(const std::filesystem::path& run, const std::filesystem::path& reference);
+
+struct Row {
+  Case c;
+  bool complete = false;
+  double wall_s = 0.0;
+  std::string method;
+  double residual_p95 = 0.0;
+  long steps_at_cap = 0;
+  double penetration_relative = 0.0;
+  Errors errors;
+};
+
+std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& rows);
+std::string study_svg(const std::vector<Row>& rows);
+std::string study_table(const std::vector<Axis>& axes, const std::vector<Row>& rows);
+
+// One line per case: "K  --set a=1 --set b=2".
+std::string list_cases(const Options& o);
+// Runs the study (or only its case o.only_case); returns a process exit code:
+// 0 all cases complete, 3 some case failed.
+int run(const Options& o);
+
+}  // namespace ces::study

@@ -1,0 +1,108 @@
+// `ces-sim study` (issue 6) on tests/scenes/study_drop.yaml: free flight to a
+// collector, so the landing position is known in closed form.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "output/compare.hpp"
+#include "study/study.hpp"
+#include "support.hpp"
+
+namespace ces {
+namespace {
+
+using test::fs::path;
+
+const std::string kScene = std::string(CES_TEST_DIR) + "/scenes/study_drop.yaml";
+const std::string kSteps = " --vary time.step=2ms,1ms,0.5ms";
+
+// study.csv as rows of fields; the header is row 0.
+std::vector<std::vector<std::string>> read_csv(const path& file) {
+  const output::Table t = output::read_table(file);
+  std::vector<std::vector<std::string>> rows{t.header};
+  rows.insert(rows.end(), t.rows.begin(), t.rows.end());
+  return rows;
+}
+
+TEST(Study, CasesAreTheGridLastAxisFastest) {
+  const auto cases = study::make_cases(
+      {study::parse_axis("time.step=2ms,1ms"), study::parse_axis("solver.method=apgd,spg,psor")});
+  ASSERT_EQ(cases.size(), 6u);
+  EXPECT_EQ(cases[4].index, 4u);
+  EXPECT_EQ(cases[4].sets, (study::Sets{{"time.step", "1ms"}, {"solver.method", "spg"}}));
+  EXPECT_THROW(study::parse_axis("time.step"), std::invalid_argument);
+  EXPECT_THROW(study::parse_axis("time.step=1ms,,2ms"), std::invalid_argument);
+}
+
+// The reference is the finest case (0.5 ms) and its error against itself is
+// exactly 0; the landing error against the reference and against the closed
+// form (mean landing position, x = vx sqrt(2 H / g)) shrinks strictly with
+// the step. Tolerance: exact for the self-comparison.
+TEST(Study, ErrorsShrinkWithTheStepAndTheReferenceIsExact) {
+  const path dir = test::fresh_dir("study_grid");
+  const test::Outcome r =
+      test::ces_sim("study " + kScene + kSteps + " --jobs 2 -o " + dir.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("reference: " + (dir / "case_2").string()), std::string::npos) << r.out;
+  const auto rows = read_csv(dir / "study.csv");
+  ASSERT_EQ(rows.size(), 4u);
+  const auto col = [&](const std::string& name) {
+    return std::size_t(std::find(rows[0].begin(), rows[0].end(), name) - rows[0].begin());
+  };
+  const std::size_t w1 = col("w1_max_mm");
+  ASSERT_LT(w1, rows[0].size());
+  EXPECT_EQ(rows[3][w1], "0");
+  EXPECT_GT(std::stod(rows[1][w1]), std::stod(rows[2][w1]));
+  EXPECT_GT(std::stod(rows[2][w1]), 0.0);
+  for (std::size_t i = 1; i < rows.size(); ++i) {
+    EXPECT_EQ(rows[i][col("balance_exact")], "true");
+    EXPECT_EQ(std::stod(rows[i][col("grade_error")]), 0.0);
+  }
+
+  const study::Errors self = study::measure(dir / "case_2", dir / "case_2");
+  EXPECT_EQ(self.w1_max_mm, 0.0);
+  EXPECT_EQ(self.grade, 0.0);
+  EXPECT_EQ(self.recovery, 0.0);
+  EXPECT_EQ(self.w1_mm.size(), 2u);
+
+  const double exact = 1.0 * std::sqrt(2 * 0.1 / 9.81);  // the fast grains
+  double previous = 1e9;
+  for (int k = 0; k < 3; ++k) {
+    const auto landings = output::read_landings(dir / ("case_" + std::to_string(k)) / "crossings.csv");
+    const auto& fast = landings.at("fast at floor");
+    double mean = 0;
+    for (const auto& [x, m] : fast) mean += x / double(fast.size());
+    const double error = std::abs(mean - exact);
+    EXPECT_LT(error, previous) << "case " << k;
+    previous = error;
+  }
+  EXPECT_NE(test::read_text(dir / "study.svg").find("<polyline"), std::string::npos);
+}
+
+// --list-cases: one line per case, K then its --set list; --case K runs that
+// case only; the full study then reuses it rather than running it again.
+TEST(Study, ListAndSelectCases) {
+  const path dir = test::fresh_dir("study_cases");
+  const std::string base = "study " + kScene + kSteps + " -o " + dir.string();
+  const test::Outcome list = test::ces_sim(base + " --vary solver.max_iterations=25,50 --list-cases");
+  ASSERT_EQ(list.code, 0) << list.err;
+  EXPECT_EQ(std::count(list.out.begin(), list.out.end(), '\n'), 6);
+  EXPECT_NE(list.out.find("3  --set time.step=1ms --set solver.max_iterations=50\n"),
+            std::string::npos)
+      << list.out;
+
+  ASSERT_EQ(test::ces_sim(base + " --case 1").code, 0);
+  EXPECT_TRUE(test::fs::exists(dir / "case_1" / "summary.json"));
+  EXPECT_FALSE(test::fs::exists(dir / "case_0"));
+  EXPECT_FALSE(test::fs::exists(dir / "study.csv"));
+  const auto stamp = test::fs::last_write_time(dir / "case_1" / "summary.json");
+
+  ASSERT_EQ(test::ces_sim(base).code, 0);
+  EXPECT_TRUE(test::fs::exists(dir / "study.csv"));
+  EXPECT_EQ(test::fs::last_write_time(dir / "case_1" / "summary.json"), stamp);
+  EXPECT_EQ(test::ces_sim(base + " --case 3").code, 2);  // out of range
+}
+
+}  // namespace
+}  // namespace ces
