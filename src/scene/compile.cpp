@@ -8,7 +8,10 @@
 #include <set>
 #include <sstream>
 
+#include "feed/shapes.hpp"
 #include "scene/diagnostics.hpp"
+#include "scene/electrostatics.hpp"
+#include "scene/schema.hpp"
 
 namespace ces::scene {
 namespace {
@@ -118,6 +121,8 @@ class Compiler {
     read_domain();
     read_feeds();
     read_collectors();
+    read_air();
+    read_electrostatics();
     read_output();
     list_components();
     sim_.model = model_;
@@ -547,7 +552,7 @@ class Compiler {
       component.mass_fraction = c.at("fraction").number();
       total += component.mass_fraction;
       const auto material = dense_material(c.at("material"), "feed '" + feed.name + "'");
-      const auto shape = particle_shape(c.find("shape"));
+      const auto shape = particle_shape(c);
       const feed::Basis basis =
           c.at("by").string() == "mass" ? feed::Basis::mass : feed::Basis::number;
       const auto size = size_distribution(c.at("size"), basis);
@@ -590,36 +595,108 @@ class Compiler {
 
   // ---------------------------------------------------------------- particle shapes
 
-  // A shapes entry, compiled on first use; nullptr: the unit sphere.
-  std::optional<int> particle_shape(const Node* ref) {
-    const std::string key = ref ? ref->string() : "";
-    if (const auto it = shape_index_.find(key); it != shape_index_.end()) return it->second;
+  // The component's shape, compiled on first use: a shapes entry (which
+  // wins over a built-in of the same name), or the built-in sphere, flake
+  // or rod.
+  std::optional<int> particle_shape(const Node& component) {
+    const Node* ref = component.find("shape");
+    const std::string name = ref ? ref->string() : "sphere";
     const Node* shapes = root_.find("shapes");
-    const Node* spec = ref && shapes ? shapes->find(key) : nullptr;
-    if (ref && !spec) {
-      NameTable known("shape");
-      if (shapes)
-        for (const Entry& e : shapes->entries) known.declare(e.key, e.key_mark, "", 0, diags_);
-      known.resolve(*ref, diags_);
+    const Node* entry = shapes ? shapes->find(name) : nullptr;
+    if (!entry && !is_builtin_shape(name)) {
+      report_unknown_shape(*ref, shapes);
       return std::nullopt;
     }
-    std::vector<Vec3> centers{Vec3::Zero()};
-    std::vector<double> radii{0.5};
-    if (spec) {
-      centers.clear();
-      radii.clear();
-      for (const Node& s : spec->at("spheres").items) {
-        centers.push_back(vec3(s));
-        radii.push_back(s.items[3].number());
-      }
-    }
-    const ParticleShape shape = make_particle_shape(centers, radii);
-    const Node* size = spec ? spec->find("size") : nullptr;
-    const int index = int(model_->shapes.size());
-    model_->shapes.push_back(shape);
-    shape_sizes_.push_back(size ? size->number() : 2.0 * shape.bounding_radius);
+    const auto aspect = shape_aspect(component, name, entry != nullptr);
+    if (!aspect) return std::nullopt;
+    const std::string key = entry ? "shapes." + name : name + "@" + format(*aspect);
+    if (const auto it = shape_index_.find(key); it != shape_index_.end()) return it->second;
+    const auto spheres = entry ? cluster_spheres(*entry) : builtin_spheres(name, *aspect);
+    std::optional<int> index;
+    if (spheres) index = add_shape(*spheres, entry, name);
     shape_index_[key] = index;
     return index;
+  }
+
+  static bool is_builtin_shape(const std::string& name) {
+    return name == "sphere" || name == "flake" || name == "rod";
+  }
+
+  void report_unknown_shape(const Node& ref, const Node* shapes) {
+    NameTable known("shape");
+    if (shapes)
+      for (const Entry& e : shapes->entries) known.declare(e.key, e.key_mark, "", 0, diags_);
+    known.resolve(ref, diags_, {"sphere", "flake", "rod"});
+  }
+
+  // The aspect of a built-in flake or rod (given, or the schema's default
+  // for the shape); 0 for shapes without one; nullopt: reported.
+  std::optional<double> shape_aspect(const Node& component, const std::string& name,
+                                     bool scene_entry) {
+    const Node* aspect = component.find("aspect");
+    const bool takes_aspect = !scene_entry && name != "sphere";
+    if (aspect && !takes_aspect) {
+      diags_.error(*aspect, "'" + name + "' has no aspect, expected aspect only with flake or rod");
+      return std::nullopt;
+    }
+    if (!takes_aspect) return 0.0;
+    if (aspect) return aspect->number();
+    return schema()
+        .at("definitions")
+        .at("mix_component")
+        .at("properties")
+        .at("aspect")
+        .at("x-default-by-shape")
+        .at(name)
+        .get<double>();
+  }
+
+  static feed::SphereList builtin_spheres(const std::string& name, double aspect) {
+    if (name == "flake") return feed::flake_spheres(aspect);
+    if (name == "rod") return feed::rod_spheres(aspect);
+    return {{Vec3::Zero()}, {0.5}};
+  }
+
+  // Listed in the scene or read from a file: exactly one of the two.
+  std::optional<feed::SphereList> cluster_spheres(const Node& entry) {
+    const Node* spheres = entry.find("spheres");
+    const Node* file = entry.find("file");
+    if (!spheres == !file) {
+      diags_.error(entry, spheres ? "both spheres and file given, expected one of them"
+                                  : "neither spheres nor file given, expected one of them");
+      return std::nullopt;
+    }
+    if (file) {
+      try {
+        return feed::read_sphere_csv(scene_dir_ / file->string());
+      } catch (const std::exception& e) {
+        diags_.error(*file, std::string("cannot read the shape: ") + e.what());
+        return std::nullopt;
+      }
+    }
+    feed::SphereList list;
+    for (const Node& sphere : spheres->items) {
+      list.centers.push_back(vec3(sphere));
+      list.radii.push_back(sphere.items[3].number());
+    }
+    return list;
+  }
+
+  // Size at scale 1: a scene entry's `size` or its bounding diameter; for
+  // the built-in flake and rod the diameter of the sphere of equal volume,
+  // so that a size law gives the same masses whatever the built-in shape
+  // (the unit sphere's is exactly 1).
+  int add_shape(const feed::SphereList& spheres, const Node* entry, const std::string& name) {
+    const ParticleShape shape = make_particle_shape(spheres.centers, spheres.radii);
+    const Node* size = entry ? entry->find("size") : nullptr;
+    if (size)
+      shape_sizes_.push_back(size->number());
+    else if (entry)
+      shape_sizes_.push_back(2.0 * shape.bounding_radius);
+    else
+      shape_sizes_.push_back(name == "sphere" ? 1.0 : std::cbrt(6.0 * shape.volume / kPi));
+    model_->shapes.push_back(shape);
+    return int(model_->shapes.size()) - 1;
   }
 
   // ---------------------------------------------------------------- sizes
@@ -757,6 +834,30 @@ class Compiler {
           "domain.box");
   }
 
+  // ---------------------------------------------------------------- separator physics
+
+  void read_air() {
+    const Node* air = root_.find("air");
+    if (!air) return;
+    fields::DragSpec drag;
+    drag.air.density = air->at("density").number();
+    drag.air.viscosity = air->at("viscosity").number();
+    drag.law = air->at("drag").string() == "stokes" ? fields::DragLaw::Stokes
+                                                    : fields::DragLaw::SchillerNaumann;
+    sim_.drag = drag;
+  }
+
+  void read_electrostatics() {
+    const Node* section = root_.find("electrostatics");
+    if (!section) return;
+    std::vector<int> fed;
+    for (const Feed& f : sim_.feeds)
+      for (const FeedComponent& c : f.mix) fed.push_back(c.material);
+    compile_electrostatics({*section, root_.find("materials"), *model_, fed, scene_dir_,
+                            [this](const Node& ref) { return bodies_.resolve(ref, diags_); }},
+                           sim_, diags_);
+  }
+
   // ---------------------------------------------------------------- output
 
   void read_output() {
@@ -772,6 +873,52 @@ class Compiler {
     } else {
       sim_.output.trajectories = {0.0, false, false};
     }
+    if (const Node* field = out.find("field")) read_field_picture(*field);
+  }
+
+  // More samples than this would make a field.csv of hundreds of MB.
+  static constexpr double kMaxFieldSamples = 4e6;
+
+  void read_field_picture(const Node& f) {
+    if (!sim_.electrostatics) {
+      if (!root_.find("electrostatics"))  // else the section's own problems were reported
+        diags_.error(f, "the field picture needs a field, expected an electrostatics section");
+      return;
+    }
+    FieldPicture picture;
+    picture.resolution = f.at("resolution").number();
+    if (const Node* extent = f.find("extent")) {
+      const Node& lo = extent->at("min");
+      const Node& hi = extent->at("max");
+      picture.min = Vec2(lo.items[0].number(), lo.items[1].number());
+      picture.max = Vec2(hi.items[0].number(), hi.items[1].number());
+      if (!(picture.min.array() < picture.max.array()).all())
+        return diags_.error(hi, "max is not above min on both axes, expected max > min");
+    } else {
+      default_extent(picture);
+    }
+    const Vec2 cells = (picture.max - picture.min) / picture.resolution;
+    if ((cells.x() + 1.0) * (cells.y() + 1.0) > kMaxFieldSamples)
+      return diags_.error(f.at("resolution"), "a resolution of " + metres(picture.resolution) +
+                                                  " needs " +
+                                                  format((cells.x() + 1.0) * (cells.y() + 1.0)) +
+                                                  " samples, expected a coarser one (at most " +
+                                                  format(kMaxFieldSamples) + ")");
+    sim_.output.field = picture;
+  }
+
+  // The drum and the electrodes, with a margin of a fifth of the drum radius.
+  void default_extent(FieldPicture& p) const {
+    const double r = sim_.electrostatics->drum.radius;
+    p.min = Vec2(-r, -r);
+    p.max = Vec2(r, r);
+    for (const NamedElectrode& e : sim_.electrodes) {
+      const Vec2 reach = Vec2::Constant(e.electrode.radius);
+      p.min = p.min.cwiseMin(e.electrode.centre - reach);
+      p.max = p.max.cwiseMax(e.electrode.centre + reach);
+    }
+    p.min -= Vec2::Constant(0.2 * r);
+    p.max += Vec2::Constant(0.2 * r);
   }
 
   // What the run has to build (DESIGN.md §1): absent sections cost nothing.
@@ -798,6 +945,10 @@ class Compiler {
         {"feeds", !sim_.feeds.empty()},
         {"collectors", !sim_.collectors.empty()},
         {"domain", sim_.domain.has_value()},
+        {"drag", sim_.drag.has_value()},
+        {"electrostatics", sim_.electrostatics.has_value()},
+        {"corona_charging", sim_.electrostatics && !sim_.electrostatics->corona.empty()},
+        {"brush", sim_.electrostatics && sim_.electrostatics->brush_body.has_value()},
         {"trajectories", sim_.output.trajectories.every > 0.0},
     };
     for (const auto& [name, on] : components)
@@ -813,8 +964,9 @@ class Compiler {
   NameTable bodies_{"body"};
   NameTable joints_{"joint"};
   std::vector<bool> has_density_;
-  std::map<std::string, int> shape_index_;  // shapes entry ("" = sphere) -> Model::shapes
-  std::vector<double> shape_sizes_;         // per Model::shapes entry
+  // "shapes.<entry>" or "<built-in>@<aspect>" -> Model::shapes index; nullopt: reported
+  std::map<std::string, std::optional<int>> shape_index_;
+  std::vector<double> shape_sizes_;  // per Model::shapes entry
 };
 
 }  // namespace

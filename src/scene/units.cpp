@@ -29,6 +29,9 @@ constexpr std::array kKinds = {
     Kind{"torque", "a torque", "N m", "2 N m", dim(1, 2, -2)},
     Kind{"voltage", "a voltage", "V", "-35 kV", dim(1, 2, -3, -1)},
     Kind{"resistivity", "a resistivity", "ohm m", "1e12 ohm m", dim(1, 3, -3, -2)},
+    Kind{"viscosity", "a dynamic viscosity", "Pa s", "1.81e-5 Pa s", dim(1, -1, -1)},
+    Kind{"electric_field", "an electric field", "V/m", "4 kV/cm", dim(1, 1, -3, -1)},
+    Kind{"current_density", "a current density", "A/m^2", "1e-4 A/m^2", dim(0, -2, 0, 1)},
 };
 
 // A unit symbol. Its SI value is factor * 10^decimal: keeping powers of ten

@@ -14,8 +14,10 @@
 
 #include "dynamics/world.hpp"
 #include "feed/feeder.hpp"
+#include "fields/stages.hpp"
 #include "output/collection.hpp"
 #include "output/distribution_svg.hpp"
+#include "output/field_picture.hpp"
 #include "output/files.hpp"
 #include "output/format.hpp"
 #include "output/step_log.hpp"
@@ -65,9 +67,9 @@ class StopSignals {
 // Removes what an earlier run left under the names this run writes, so a
 // folder never mixes two runs (a stale summary.json saying complete, say).
 void clear_previous_outputs(const fs::path& dir) {
-  for (const char* name :
-       {"summary.json", "bins.csv", "products.csv", "crossings.csv", "lost.csv", "steps.csv",
-        "scene.resolved.yaml", "distribution.svg", "trajectories.pvd", "trajectories.csv"}) {
+  for (const char* name : {"summary.json", "bins.csv", "products.csv", "crossings.csv", "lost.csv",
+                           "steps.csv", "scene.resolved.yaml", "distribution.svg", "field.csv",
+                           "field.svg", "trajectories.pvd", "trajectories.csv"}) {
     fs::remove(dir / name);
     fs::remove(dir / (std::string(name) + ".tmp"));
   }
@@ -123,6 +125,8 @@ class Runner {
   RunResult run();
 
  private:
+  void add_physics();
+  void write_field_picture();
   void step_to_end();
   void observe(const StepStats& s, double wall);
   void write_outputs();
@@ -168,6 +172,25 @@ Runner::Runner(const Simulation& sim, const RunOptions& options)
     collection_(w);
     own_.collect += seconds_since(t0);
   });
+  add_physics();
+}
+
+// Only what the scene asked for (DESIGN.md §1): no air, no drag stage; no
+// electrostatics section, no field model and no charging pass.
+void Runner::add_physics() {
+  if (sim_.drag) fields::add_drag_stage(world_, *sim_.drag);
+  if (sim_.electrostatics) fields::add_electrostatics_stage(world_, *sim_.electrostatics);
+}
+
+// A property of the machine, not of the run: written first, so an
+// interrupted run still has it.
+void Runner::write_field_picture() {
+  if (!sim_.output.field || !sim_.electrostatics) return;
+  const auto t0 = Clock::now();
+  const output::FieldGrid grid = output::sample_field(sim_);
+  output::write_file_atomic(dir_ / "field.csv", output::field_csv(grid));
+  output::write_file_atomic(dir_ / "field.svg", output::field_svg(sim_, grid));
+  own_.output += seconds_since(t0);
 }
 
 RunResult Runner::run() {
@@ -176,6 +199,7 @@ RunResult Runner::run() {
     output::write_file_atomic(dir_ / "scene.resolved.yaml", sim_.resolved_yaml);
   // A summary from the start: a run killed outright still says it did not finish.
   output::write_file_atomic(dir_ / "summary.json", output::summary_json(record()));
+  write_field_picture();
   step_to_end();
   write_outputs();
   return {complete_, complete_ ? std::string() : reason_, dir_.string()};

@@ -10,6 +10,7 @@
 
 #include "dynamics/model.hpp"
 #include "feed/size_distribution.hpp"
+#include "fields/stages.hpp"
 #include "geometry/shapes.hpp"
 
 namespace ces {
@@ -19,8 +20,11 @@ struct FeedComponent {
   int material = 0;
   double mass_fraction = 1.0;      // fractions of a feed sum to 1
   feed::SizeDistribution size = feed::SizeDistribution::constant(1e-3);
-  int shape = 0;                   // Model::shapes index; diameter = scale * shape's size
-  double shape_size = 1.0;         // the shape's characteristic diameter at scale 1 (m)
+  int shape = 0;                   // Model::shapes index; size = scale * shape_size
+  // The shape's characteristic size at scale 1 (m): for spheres, flakes and
+  // rods the diameter of the sphere of equal volume, for scene clusters
+  // their `size`. Size distributions draw this size.
+  double shape_size = 1.0;
 };
 
 struct Feed {
@@ -61,11 +65,27 @@ struct Trajectories {
   bool csv = false;
 };
 
+// field.csv and field.svg: the field model sampled on a grid in the drum's
+// cross-section (z = 0).
+struct FieldPicture {
+  double resolution = 0.002;       // grid spacing (m)
+  Vec2 min = Vec2::Zero();         // corners of the pictured rectangle (m)
+  Vec2 max = Vec2::Zero();
+};
+
 struct OutputSettings {
   std::string dir = "out";
   Trajectories trajectories;
   bool steps_csv = true;
   bool distribution_svg = true;
+  std::optional<FieldPicture> field;  // needs Simulation::electrostatics
+};
+
+// An electrode as the scene names it, for pictures and reports (the field
+// model keeps its own copy).
+struct NamedElectrode {
+  std::string name;
+  fields::Electrode electrode;
 };
 
 struct Simulation {
@@ -79,6 +99,10 @@ struct Simulation {
   std::vector<Feed> feeds;
   std::vector<Collector> collectors;
   std::optional<geo::Aabb> domain; // leaving it: lost ("left domain")
+  // Separator physics; absent, the run builds no stage for it (DESIGN.md §1).
+  std::optional<fields::DragSpec> drag;
+  std::optional<fields::ElectrostaticsSpec> electrostatics;
+  std::vector<NamedElectrode> electrodes;  // empty without electrostatics
   OutputSettings output;
   std::vector<std::string> active_components;
 };

@@ -1,0 +1,33 @@
+// The scene's electrostatics section -> the field model, charging zones and
+// per-material electrical behaviour (fields/stages.hpp), with the checks
+// the schema cannot make: the drum and brush exist and the drum sits where
+// the field models put it, electrodes clear of the drum and of each other,
+// the model gets the electrodes it needs, a grid file that reads, corona
+// sectors in order, materials that say how they conduct.
+#pragma once
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <vector>
+
+#include "scene/tree.hpp"
+#include "sim/simulation.hpp"
+
+namespace ces::scene {
+
+class Diagnostics;
+
+struct ElectrostaticsInput {
+  const Node& section;    // electrostatics
+  const Node* materials;  // the materials section, or null
+  const Model& model;     // bodies and materials compiled
+  std::vector<int> fed;   // materials fed as particles
+  std::filesystem::path scene_dir;
+  // A body's index by the name `ref` holds; unknown names are reported.
+  std::function<std::optional<int>(const Node& ref)> body;
+};
+
+// Sets sim.electrostatics and sim.electrodes, or reports every problem.
+void compile_electrostatics(const ElectrostaticsInput& in, Simulation& sim, Diagnostics& diags);
+
+}  // namespace ces::scene
