@@ -1,0 +1,236 @@
+// STEP (AP203/AP214) through OpenCASCADE's XDE reader: part names from the
+// assembly, triangles from BRepMesh, exact cylinders from the B-rep.
+#include <BRepAdaptor_Surface.hxx>
+#include <BRepMesh_IncrementalMesh.hxx>
+#include <BRep_Tool.hxx>
+#include <IFSelect_ReturnStatus.hxx>
+#include <Interface_Static.hxx>
+#include <Message.hxx>
+#include <Message_Messenger.hxx>
+#include <Message_PrinterOStream.hxx>
+#include <Poly_Triangulation.hxx>
+#include <STEPCAFControl_Reader.hxx>
+#include <STEPControl_Reader.hxx>
+#include <Standard_Failure.hxx>
+#include <TColStd_SequenceOfAsciiString.hxx>
+#include <TCollection_AsciiString.hxx>
+#include <TDF_LabelSequence.hxx>
+#include <TDataStd_Name.hxx>
+#include <TDocStd_Document.hxx>
+#include <TopExp_Explorer.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Face.hxx>
+#include <XCAFApp_Application.hxx>
+#include <XCAFDoc_DocumentTool.hxx>
+#include <XCAFDoc_ShapeTool.hxx>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "parts.hpp"
+
+namespace ces::exporter {
+namespace {
+
+Vec3 vec(const gp_XYZ& p) { return {p.X(), p.Y(), p.Z()}; }
+
+// OpenCASCADE reports through Message printers on stdout; the exporter's
+// stdout is its report, so they go.
+void silence_occt() {
+  Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_PrinterOStream));
+}
+
+// The label's name, or "" for none and for the placeholders ("=>[0:1:1:2]")
+// OpenCASCADE gives unnamed assembly instances.
+std::string label_name(const TDF_Label& label) {
+  Handle(TDataStd_Name) name;
+  if (!label.FindAttribute(TDataStd_Name::GetID(), name)) return "";
+  const std::string s = TCollection_AsciiString(name->Get(), '_').ToCString();
+  return s.starts_with("=>") ? "" : s;
+}
+
+Mesh tessellate(const TopoDS_Shape& shape, const StepOptions& options) {
+  BRepMesh_IncrementalMesh mesher(shape, options.deflection, false, options.angle, false);
+  Mesh mesh;
+  for (TopExp_Explorer e(shape, TopAbs_FACE); e.More(); e.Next()) {
+    const TopoDS_Face& face = TopoDS::Face(e.Current());
+    TopLoc_Location loc;
+    const Handle(Poly_Triangulation) tri = BRep_Tool::Triangulation(face, loc);
+    if (tri.IsNull()) continue;
+    const auto base = std::uint32_t(mesh.vertices.size());
+    for (int i = 1; i <= tri->NbNodes(); ++i)
+      mesh.vertices.push_back(vec(tri->Node(i).Transformed(loc.Transformation()).XYZ()));
+    // Reversed faces have their material on the other side of the surface.
+    const bool reversed = face.Orientation() == TopAbs_REVERSED;
+    for (int i = 1; i <= tri->NbTriangles(); ++i) {
+      int a = 0, b = 0, c = 0;
+      tri->Triangle(i).Get(a, b, c);
+      if (reversed) std::swap(b, c);
+      mesh.triangles.push_back(
+          {base + std::uint32_t(a - 1), base + std::uint32_t(b - 1), base + std::uint32_t(c - 1)});
+    }
+  }
+  return mesh;
+}
+
+struct CylinderFace {
+  Vec3 origin, axis;
+  double radius, v0, v1;
+};
+
+bool same_surface(const CylinderFace& a, const CylinderFace& b) {
+  const double tol = 1e-9 * std::max(a.radius, 1.0);
+  const Vec3 offset = b.origin - a.origin;
+  return std::abs(a.radius - b.radius) <= tol && a.axis.cross(b.axis).norm() <= 1e-9 &&
+         (offset - offset.dot(a.axis) * a.axis).norm() <= tol;
+}
+
+std::vector<CylinderFace> cylinder_faces(const TopoDS_Shape& shape) {
+  std::vector<CylinderFace> faces;
+  for (TopExp_Explorer e(shape, TopAbs_FACE); e.More(); e.Next()) {
+    const BRepAdaptor_Surface s(TopoDS::Face(e.Current()));
+    if (s.GetType() != GeomAbs_Cylinder) continue;
+    const gp_Cylinder c = s.Cylinder();
+    faces.push_back({vec(c.Location().XYZ()), vec(c.Axis().Direction().XYZ()), c.Radius(),
+                     s.FirstVParameter(), s.LastVParameter()});
+  }
+  return faces;
+}
+
+// The largest cylindrical surface, its faces' extents along the axis joined.
+std::optional<ExactCylinder> largest_cylinder(const TopoDS_Shape& shape) {
+  const auto faces = cylinder_faces(shape);
+  if (faces.empty()) return std::nullopt;
+  const CylinderFace& outer = *std::max_element(
+      faces.begin(), faces.end(), [](const auto& a, const auto& b) { return a.radius < b.radius; });
+  ExactCylinder ex;
+  const Vec3 axis = canonical_axis(outer.axis);
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const CylinderFace& f : faces) {
+    if (!same_surface(outer, f)) {
+      ++ex.other_cylinders;
+      continue;
+    }
+    ++ex.faces;
+    for (double v : {f.v0, f.v1}) {
+      const double along = (f.origin + v * f.axis).dot(axis);
+      lo = std::min(lo, along);
+      hi = std::max(hi, along);
+    }
+  }
+  const Vec3 foot = outer.origin - outer.origin.dot(axis) * axis;
+  ex.cylinder = {axis, foot + 0.5 * (lo + hi) * axis, outer.radius, hi - lo};
+  return ex;
+}
+
+class Walker {
+ public:
+  Walker(const Handle(XCAFDoc_ShapeTool) & tool, const StepOptions& options)
+      : tool_(tool), options_(options) {}
+
+  // Assemblies are walked down to their parts, locations composed.
+  void walk(const TDF_Label& label, const TopLoc_Location& loc, const std::string& instance) {
+    if (tool_->IsAssembly(label)) {
+      TDF_LabelSequence components;
+      XCAFDoc_ShapeTool::GetComponents(label, components);
+      for (int i = 1; i <= components.Length(); ++i) {
+        TDF_Label referred;
+        XCAFDoc_ShapeTool::GetReferredShape(components(i), referred);
+        walk(referred, loc * XCAFDoc_ShapeTool::GetLocation(components(i)),
+             label_name(components(i)));
+      }
+      return;
+    }
+    add_part(label, XCAFDoc_ShapeTool::GetShape(label).Moved(loc), instance);
+  }
+
+  std::vector<Part> parts;
+
+ private:
+  void add_part(const TDF_Label& label, const TopoDS_Shape& shape, const std::string& instance) {
+    Part p;
+    p.name = label_name(label);
+    if (p.name.empty())
+      p.name = instance.empty() ? "part_" + std::to_string(parts.size() + 1) : instance;
+    p.instance = instance == p.name ? "" : instance;
+    p.mesh = tessellate(shape, options_);
+    p.exact_cylinder = largest_cylinder(shape);
+    parts.push_back(std::move(p));
+  }
+
+  Handle(XCAFDoc_ShapeTool) tool_;
+  const StepOptions& options_;
+};
+
+std::string declared_unit(STEPCAFControl_Reader& reader) {
+  TColStd_SequenceOfAsciiString lengths, angles, solid_angles;
+  reader.ChangeReader().FileUnits(lengths, angles, solid_angles);
+  return lengths.IsEmpty() ? "" : lengths.First().ToCString();
+}
+
+// Rescales parts read in the file's declared unit to the unit the
+// annotations say the file really uses.
+void override_unit(std::vector<Part>& parts, const std::string& declared, double metres_per_unit,
+                   const std::string& path) {
+  const auto file_scale = unit_scale(declared);
+  if (!file_scale)
+    throw InputError(path + ": its length unit '" + declared +
+                     "' is not one ces-export knows, so units cannot override it");
+  const double f = metres_per_unit / *file_scale;
+  for (Part& p : parts) {
+    for (Vec3& v : p.mesh.vertices) v *= f;
+    if (p.exact_cylinder) {
+      Cylinder& c = p.exact_cylinder->cylinder;
+      c.center *= f;
+      c.radius *= f;
+      c.length *= f;
+    }
+  }
+}
+
+std::vector<Part> read_document(const std::string& path, const StepOptions& options,
+                                std::string& file_unit) {
+  Handle(XCAFApp_Application) app = XCAFApp_Application::GetApplication();
+  Handle(TDocStd_Document) doc;
+  app->NewDocument("MDTV-XCAF", doc);
+  STEPCAFControl_Reader reader;
+  reader.SetNameMode(true);
+  // Metres, both through the session unit and the document's own unit
+  // (OpenCASCADE 7.6 takes the document's when it has one).
+  Interface_Static::SetCVal("xstep.cascade.unit", "M");
+  XCAFDoc_DocumentTool::SetLengthUnit(doc, 1.0, UnitsMethods_LengthUnit_Meter);
+  if (reader.ReadFile(path.c_str()) != IFSelect_RetDone)
+    throw InputError("cannot read " + path + ": not a STEP file OpenCASCADE can read");
+  file_unit = declared_unit(reader);
+  if (!reader.Transfer(doc)) throw InputError("cannot read " + path + ": no shapes transferred");
+  Walker walker(XCAFDoc_DocumentTool::ShapeTool(doc->Main()), options);
+  TDF_LabelSequence free;
+  XCAFDoc_DocumentTool::ShapeTool(doc->Main())->GetFreeShapes(free);
+  for (int i = 1; i <= free.Length(); ++i) walker.walk(free(i), TopLoc_Location(), "");
+  app->Close(doc);
+  if (walker.parts.empty()) throw InputError("cannot read " + path + ": it holds no shapes");
+  return std::move(walker.parts);
+}
+
+}  // namespace
+
+bool have_step_reader() { return true; }
+
+std::vector<Part> read_step(const std::string& path, const StepOptions& options,
+                            std::string& file_unit) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw InputError("cannot read " + path + ": no such file");
+  silence_occt();
+  std::vector<Part> parts;
+  try {
+    parts = read_document(path, options, file_unit);
+  } catch (const Standard_Failure& e) {
+    throw InputError("cannot read " + path + ": OpenCASCADE: " + e.GetMessageString());
+  }
+  if (options.unit_override) override_unit(parts, file_unit, *options.unit_override, path);
+  for (Part& p : parts) p.source = path;
+  return parts;
+}
+
+}  // namespace ces::exporter
