@@ -15,29 +15,8 @@ constexpr const char* kColours[] = {"#D55E00", "#0072B2", "#009E73", "#CC79A7",
 constexpr double kWidth = 760, kPanelHeight = 420;
 constexpr double kLeft = 80, kRight = 170, kTop = 50, kBottom = 60;
 
-// Fixed two decimals for coordinates, independent of the locale.
-std::string fixed(double v) {
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, 2);
-  return std::string(buf, r.ptr);
-}
-
-std::string escape(const std::string& s) {
-  std::string out;
-  for (const char c : s) {
-    if (c == '&')
-      out += "&amp;";
-    else if (c == '<')
-      out += "&lt;";
-    else if (c == '>')
-      out += "&gt;";
-    else if (c == '"')
-      out += "&quot;";
-    else
-      out += c;
-  }
-  return out;
-}
+std::string fixed(double v) { return svg_number(v); }
+std::string escape(const std::string& s) { return xml_escape(s); }
 
 // Round tick spacing (1, 2 or 5 times a power of ten) for about five ticks.
 double tick_step(double range) {

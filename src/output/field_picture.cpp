@@ -39,28 +39,8 @@ constexpr const char* kElectrodeFill = "#505050";
 // A white outline keeps labels readable over arrows and colour bands.
 constexpr const char* kHalo = " stroke=\"#fff\" stroke-width=\"3\" paint-order=\"stroke\"";
 
-std::string fixed(double v) {
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, 2);
-  return std::string(buf, r.ptr);
-}
-
-std::string escape(const std::string& s) {
-  std::string out;
-  for (const char c : s) {
-    if (c == '&')
-      out += "&amp;";
-    else if (c == '<')
-      out += "&lt;";
-    else if (c == '>')
-      out += "&gt;";
-    else if (c == '"')
-      out += "&quot;";
-    else
-      out += c;
-  }
-  return out;
-}
+std::string fixed(double v) { return svg_number(v); }
+std::string escape(const std::string& s) { return xml_escape(s); }
 
 // Linear blend of the ramp at t in [0, 1], as "#rrggbb".
 std::string ramp_colour(double t) {

@@ -15,6 +15,11 @@ void append_number(std::string& out, std::int64_t v);
 inline void append_number(std::string& out, int v) { append_number(out, std::int64_t(v)); }
 std::string format_number(double v);
 
+// SVG coordinates: fixed two decimals, locale-independent.
+std::string svg_number(double v);
+// Text for XML attributes and elements (&, <, >, ").
+std::string xml_escape(const std::string& s);
+
 // Appends CSV rows to a string; fields are separated by commas. Text fields
 // are names from the scene (materials, products), written as is.
 class CsvWriter {
