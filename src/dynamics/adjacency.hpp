@@ -11,6 +11,7 @@ struct ContactAdjacency {
   // Body i's entries are entry[offset[i] .. offset[i+1]), each
   // (contact << 1 | side), side 1 when the body is the contact's B.
   std::vector<std::uint32_t> offset, entry;
+  std::vector<std::uint32_t> fill;  // scratch, kept to avoid allocating every step
 
   // Lists only bodies for which listed(i) is true (e.g. finite mass).
   template <class Listed>
@@ -23,7 +24,7 @@ struct ContactAdjacency {
     }
     for (std::size_t i = 0; i < body_count; ++i) offset[i + 1] += offset[i];
     entry.resize(offset[body_count]);
-    std::vector<std::uint32_t> fill(offset.begin(), offset.end() - 1);
+    fill.assign(offset.begin(), offset.end() - 1);
     // Contacts are visited in order, so each body's list is sorted: fixed sums.
     for (std::size_t k = 0; k < a.size(); ++k) {
       if (listed(a[k])) entry[fill[std::size_t(a[k])]++] = std::uint32_t(k << 1);

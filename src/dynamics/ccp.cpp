@@ -28,6 +28,8 @@ Vec3 point_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, int 
   return v[u] + w[u].cross(r);
 }
 
+Vec3 wide(const Vec3f& f) { return f.cast<double>(); }
+
 double row_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, const BilateralRow& row) {
   double s = 0.0;
   if (row.a >= 0) s += row.lin_a.dot(v[std::size_t(row.a)]) + row.ang_a.dot(w[std::size_t(row.a)]);
@@ -62,50 +64,56 @@ void SolverBodies::resize(std::size_t n) {
 }
 
 void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
-                          std::vector<BilateralRow> rows, double h,
+                          const std::vector<BilateralRow>& rows, double h,
                           const ContactSettings& settings) {
   bodies_ = &B;
-  rows_ = std::move(rows);
+  rows_ = rows;
   const std::size_t nc = c.size();
   a_ = c.body_a;
   b_ = c.body_b;
-  n_ = c.normal;
   mu_ = c.friction;
-  t1_.resize(nc);
-  t2_.resize(nc);
-  ra_.resize(nc);
-  rb_.resize(nc);
+  for (auto* f : {&n_, &t1_, &t2_, &ra_, &rb_}) f->resize(nc);
   bias_.resize(nc);
   diag_.resize(nc);
-  diag_max_ = 0.0;
-  for (std::size_t k = 0; k < nc; ++k) {
-    const Vec3& n = n_[k];
-    tangents(n, t1_[k], t2_[k]);
-    ra_[k] = c.point[k] - B.x[std::size_t(a_[k])];
-    rb_[k] = c.point[k] - B.x[std::size_t(b_[k])];
+  double diag_max = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : diag_max) if (std::ptrdiff_t(nc) > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(nc); ++s) {
+    const auto k = std::size_t(s);
+    const Vec3& n = c.normal[k];
+    Vec3 t1, t2;
+    tangents(n, t1, t2);
+    const Vec3 ra = c.point[k] - B.x[std::size_t(a_[k])];
+    const Vec3 rb = c.point[k] - B.x[std::size_t(b_[k])];
+    n_[k] = n.cast<float>();
+    t1_[k] = t1.cast<float>();
+    t2_[k] = t2.cast<float>();
+    ra_[k] = ra.cast<float>();
+    rb_[k] = rb.cast<float>();
     // Stabilization: close a positive gap exactly this step, push an overlap
     // out no faster than the recovery speed.
     double bias = std::max(c.gap[k] / h, -settings.recovery_speed);
-    const double approach = n.dot(point_velocity(B.v, B.w, b_[k], rb_[k]) -
-                                  point_velocity(B.v, B.w, a_[k], ra_[k]));
+    const double approach =
+        n.dot(point_velocity(B.v, B.w, b_[k], rb) - point_velocity(B.v, B.w, a_[k], ra));
     const bool impact = approach < -settings.restitution_threshold && c.gap[k] + h * approach < 0.0;
     if (impact && c.restitution[k] > 0.0) bias = std::min(bias, c.restitution[k] * approach);
     bias_[k] = bias;
-    diag_[k] = row_mass(B, a_[k], n, ra_[k].cross(n)) + row_mass(B, b_[k], n, rb_[k].cross(n));
-    diag_max_ = std::max(diag_max_, diag_[k]);
+    const Vec3 nw = wide(n_[k]);  // the rounded row the kernel applies
+    diag_[k] = row_mass(B, a_[k], nw, wide(ra_[k]).cross(nw)) +
+               row_mass(B, b_[k], nw, wide(rb_[k]).cross(nw));
+    diag_max = std::max(diag_max, diag_[k]);
   }
   row_diag_.resize(rows_.size());
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const BilateralRow& r = rows_[j];
     row_diag_[j] = row_mass(B, r.a, r.lin_a, r.ang_a) + row_mass(B, r.b, r.lin_b, r.ang_b);
-    diag_max_ = std::max(diag_max_, row_diag_[j]);
+    diag_max = std::max(diag_max, row_diag_[j]);
   }
-  if (diag_max_ <= 0.0) diag_max_ = 1.0;
+  diag_max_ = diag_max > 0.0 ? diag_max : 1.0;
   adj_.build(a_, b_, B.inv_mass.size(),
              [&](std::int32_t i) { return B.inv_mass[std::size_t(i)] > 0.0; });
 }
 
-void CcpProblem::scatter(const VectorXd& x, bool add_free, std::vector<Vec3>& dv,
+void CcpProblem::scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
                          std::vector<Vec3>& dw) const {
   const SolverBodies& B = *bodies_;
   const auto nc = std::ptrdiff_t(a_.size());
@@ -116,7 +124,7 @@ void CcpProblem::scatter(const VectorXd& x, bool add_free, std::vector<Vec3>& dv
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t k = 0; k < nc; ++k) {
     const auto u = std::size_t(k);
-    impulse_[u] = n_[u] * x[3 * k] + t1_[u] * x[3 * k + 1] + t2_[u] * x[3 * k + 2];
+    impulse_[u] = wide(n_[u]) * x[3 * u] + wide(t1_[u]) * x[3 * u + 1] + wide(t2_[u]) * x[3 * u + 2];
   }
 #pragma omp parallel for schedule(static) if (nb > kParallelMin)
   for (std::ptrdiff_t i = 0; i < nb; ++i) {
@@ -127,10 +135,10 @@ void CcpProblem::scatter(const VectorXd& x, bool add_free, std::vector<Vec3>& dv
       const std::size_t k = entry >> 1;
       if (entry & 1) {
         lin += impulse_[k];
-        ang += rb_[k].cross(impulse_[k]);
+        ang += wide(rb_[k]).cross(impulse_[k]);
       } else {
         lin -= impulse_[k];
-        ang -= ra_[k].cross(impulse_[k]);
+        ang -= wide(ra_[k]).cross(impulse_[k]);
       }
     }
     dv[u] = B.inv_mass[u] * lin;
@@ -140,159 +148,194 @@ void CcpProblem::scatter(const VectorXd& x, bool add_free, std::vector<Vec3>& dv
       dw[u] += B.w_free[u];
     }
   }
-  for (std::size_t j = 0; j < rows_.size(); ++j)
-    apply_row(B, rows_[j], x[std::ptrdiff_t(3 * a_.size() + j)], dv, dw);
+  for (std::size_t j = 0; j < rows_.size(); ++j) apply_row(B, rows_[j], x[3 * a_.size() + j], dv, dw);
 }
 
 void CcpProblem::gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias,
-                        VectorXd& y) const {
+                        Span y) const {
   const auto nc = std::ptrdiff_t(a_.size());
-  y.resize(std::ptrdiff_t(row_count()));
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t k = 0; k < nc; ++k) {
     const auto u = std::size_t(k);
-    const Vec3 rel = point_velocity(v, w, b_[u], rb_[u]) - point_velocity(v, w, a_[u], ra_[u]);
-    y[3 * k] = n_[u].dot(rel) + (add_bias ? bias_[u] : 0.0);
-    y[3 * k + 1] = t1_[u].dot(rel);
-    y[3 * k + 2] = t2_[u].dot(rel);
+    const Vec3 rel = point_velocity(v, w, b_[u], wide(rb_[u])) - point_velocity(v, w, a_[u], wide(ra_[u]));
+    y[3 * u] = wide(n_[u]).dot(rel) + (add_bias ? bias_[u] : 0.0);
+    y[3 * u + 1] = wide(t1_[u]).dot(rel);
+    y[3 * u + 2] = wide(t2_[u]).dot(rel);
   }
   for (std::size_t j = 0; j < rows_.size(); ++j)
-    y[std::ptrdiff_t(3 * a_.size() + j)] =
-        row_velocity(v, w, rows_[j]) + (add_bias ? rows_[j].bias : 0.0);
+    y[3 * a_.size() + j] = row_velocity(v, w, rows_[j]) + (add_bias ? rows_[j].bias : 0.0);
 }
 
-void CcpProblem::multiply(const VectorXd& x, VectorXd& y) const {
+void CcpProblem::multiply(ConstSpan x, Span y) const {
   scatter(x, false, dv_, dw_);
   gather(dv_, dw_, false, y);
 }
 
-void CcpProblem::velocities(const VectorXd& x, std::vector<Vec3>& v, std::vector<Vec3>& w) const {
+void CcpProblem::velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>& w) const {
   scatter(x, true, v, w);
 }
 
-void CcpProblem::gradient(const VectorXd& x, VectorXd& g) const {
+void CcpProblem::gradient(ConstSpan x, Span g) const {
   scatter(x, true, dv_, dw_);
   gather(dv_, dw_, true, g);
 }
 
-void CcpProblem::project(VectorXd& x) const {
+void CcpProblem::project(Span x) const {
   const auto nc = std::ptrdiff_t(a_.size());
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t k = 0; k < nc; ++k)
-    project_cone(mu_[std::size_t(k)], x[3 * k], x[3 * k + 1], x[3 * k + 2]);
+    project_cone(mu_[std::size_t(k)], x[3 * std::size_t(k)], x[3 * std::size_t(k) + 1],
+                 x[3 * std::size_t(k) + 2]);
   for (std::size_t j = 0; j < rows_.size(); ++j) {
-    double& v = x[3 * nc + std::ptrdiff_t(j)];
+    double& v = x[3 * a_.size() + j];
     v = std::clamp(v, rows_[j].lo, rows_[j].hi);
   }
 }
 
-void CcpProblem::residual(const VectorXd& x, const VectorXd& g, double& rms, double& max) const {
-  // One fused pass, no temporaries (it runs every iteration). Partial sums
-  // over fixed chunks, added in chunk order: the same bits for any thread count.
-  constexpr std::ptrdiff_t kChunk = 2048;
-  const double s = 1.0 / diag_max_;
+void CcpProblem::projected_step(ConstSpan y, ConstSpan g, double step, Span out) const {
   const auto nc = std::ptrdiff_t(a_.size());
-  const std::ptrdiff_t chunks = (nc + kChunk - 1) / kChunk;
-  partial_sum_.assign(std::size_t(chunks) + 1, 0.0);
-  partial_max_.assign(std::size_t(chunks) + 1, 0.0);
-  auto add = [s](double xi, double pi, double& sum, double& largest) {
-    const double r = (xi - pi) / s;
-    sum += r * r;
-    largest = std::max(largest, std::abs(r));
-  };
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
-  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
-    double sum = 0.0, largest = 0.0;
-    for (std::ptrdiff_t k = ch * kChunk; k < std::min(nc, (ch + 1) * kChunk); ++k) {
-      double pn = x[3 * k] - s * g[3 * k], p1 = x[3 * k + 1] - s * g[3 * k + 1],
-             p2 = x[3 * k + 2] - s * g[3 * k + 2];
-      project_cone(mu_[std::size_t(k)], pn, p1, p2);
-      add(x[3 * k], pn, sum, largest);
-      add(x[3 * k + 1], p1, sum, largest);
-      add(x[3 * k + 2], p2, sum, largest);
-    }
-    partial_sum_[std::size_t(ch)] = sum;
-    partial_max_[std::size_t(ch)] = largest;
+  for (std::ptrdiff_t k = 0; k < nc; ++k) {
+    const auto i = 3 * std::size_t(k);
+    double gn = y[i] - step * g[i], g1 = y[i + 1] - step * g[i + 1], g2 = y[i + 2] - step * g[i + 2];
+    project_cone(mu_[std::size_t(k)], gn, g1, g2);
+    out[i] = gn;
+    out[i + 1] = g1;
+    out[i + 2] = g2;
   }
   for (std::size_t j = 0; j < rows_.size(); ++j) {
-    const double xi = x[3 * nc + std::ptrdiff_t(j)];
-    add(xi, std::clamp(xi - s * g[3 * nc + std::ptrdiff_t(j)], rows_[j].lo, rows_[j].hi),
-        partial_sum_.back(), partial_max_.back());
+    const std::size_t i = 3 * a_.size() + j;
+    out[i] = std::clamp(y[i] - step * g[i], rows_[j].lo, rows_[j].hi);
   }
-  double sum = 0.0;
-  max = 0.0;
-  for (std::size_t c = 0; c < partial_sum_.size(); ++c) {
-    sum += partial_sum_[c];
-    max = std::max(max, partial_max_[c]);
-  }
-  const auto m = x.size();
-  rms = m > 0 ? std::sqrt(sum / double(m)) : 0.0;
 }
 
-void CcpProblem::world_impulses(const VectorXd& x, std::vector<Vec3>& out) const {
-  out.resize(a_.size());
-  for (std::size_t k = 0; k < a_.size(); ++k) {
-    const auto i = std::ptrdiff_t(3 * k);
-    out[k] = n_[k] * x[i] + t1_[k] * x[i + 1] + t2_[k] * x[i + 2];
+namespace {
+struct ResidualPart {
+  double sum = 0.0, max = 0.0;
+  ResidualPart& operator+=(const ResidualPart& o) {
+    sum += o.sum;
+    max = std::max(max, o.max);
+    return *this;
   }
+  void add(double x, double projected, double inv_s) {
+    const double r = (x - projected) * inv_s;
+    sum += r * r;
+    max = std::max(max, std::abs(r));
+  }
+};
+}  // namespace
+
+void CcpProblem::residual(ConstSpan x, ConstSpan g, double& rms, double& max) const {
+  const double s = 1.0 / diag_max_;
+  const ResidualPart total = reduce<ResidualPart>(
+      [&](std::ptrdiff_t k, double mu, ResidualPart& part) {
+        const auto i = 3 * std::size_t(k);
+        double pn = x[i] - s * g[i], p1 = x[i + 1] - s * g[i + 1], p2 = x[i + 2] - s * g[i + 2];
+        project_cone(mu, pn, p1, p2);
+        part.add(x[i], pn, diag_max_);
+        part.add(x[i + 1], p1, diag_max_);
+        part.add(x[i + 2], p2, diag_max_);
+      },
+      [&](std::ptrdiff_t i, double lo, double hi, ResidualPart& part) {
+        const auto u = std::size_t(i);
+        part.add(x[u], std::clamp(x[u] - s * g[u], lo, hi), diag_max_);
+      });
+  max = total.max;
+  rms = x.empty() ? 0.0 : std::sqrt(total.sum / double(x.size()));
+}
+
+void CcpProblem::world_impulses(ConstSpan x, std::vector<Vec3>& out) const {
+  out.resize(a_.size());
+  for (std::size_t k = 0; k < a_.size(); ++k)
+    out[k] = wide(n_[k]) * x[3 * k] + wide(t1_[k]) * x[3 * k + 1] + wide(t2_[k]) * x[3 * k + 2];
 }
 
 void CcpProblem::warm_start(const std::vector<ContactKey>& keys,
                             const std::vector<ContactKey>& prev_keys,
-                            const std::vector<Vec3>& prev_impulse, const VectorXd& prev_x,
-                            VectorXd& x) const {
-  x.setZero(std::ptrdiff_t(row_count()));
+                            const std::vector<Vec3>& prev_impulse, ConstSpan prev_x, Span x) const {
+  std::fill(x.begin(), x.end(), 0.0);
+  // Both lists come sorted when the contacts are (the usual case): then a
+  // merge, else a binary search per contact.
+  auto from = prev_keys.begin();
   for (std::size_t k = 0; k < keys.size(); ++k) {
-    const auto it = std::lower_bound(prev_keys.begin(), prev_keys.end(), keys[k]);
+    if (from == prev_keys.end() || keys[k] < *from) from = prev_keys.begin();
+    const auto it = std::lower_bound(from, prev_keys.end(), keys[k]);
+    from = it;
     if (it == prev_keys.end() || !(*it == keys[k])) continue;
     const Vec3& P = prev_impulse[std::size_t(it - prev_keys.begin())];
-    const auto i = std::ptrdiff_t(3 * k);
-    x[i] = n_[k].dot(P);
-    x[i + 1] = t1_[k].dot(P);
-    x[i + 2] = t2_[k].dot(P);
+    x[3 * k] = wide(n_[k]).dot(P);
+    x[3 * k + 1] = wide(t1_[k]).dot(P);
+    x[3 * k + 2] = wide(t2_[k]).dot(P);
   }
-  const auto base = std::ptrdiff_t(3 * a_.size());
-  const auto prev_base = prev_x.size() - std::ptrdiff_t(rows_.size());
+  const std::size_t base = 3 * a_.size();
+  const auto prev_base = std::ptrdiff_t(prev_x.size()) - std::ptrdiff_t(rows_.size());
   if (prev_base >= 0 && prev_base % 3 == 0)
-    for (std::size_t r = 0; r < rows_.size(); ++r)
-      x[base + std::ptrdiff_t(r)] = prev_x[prev_base + std::ptrdiff_t(r)];
+    for (std::size_t r = 0; r < rows_.size(); ++r) x[base + r] = prev_x[std::size_t(prev_base) + r];
   project(x);
 }
 
-SolveStats CcpProblem::solve_pgs(VectorXd& x, const SolverSettings& s) const {
+double CcpProblem::block_bound(std::size_t k) const {
+  // Gershgorin bound on the largest eigenvalue of the contact's 3x3 block of N.
+  const Vec3 dir[3] = {wide(n_[k]), wide(t1_[k]), wide(t2_[k])};
+  Mat3 block = Mat3::Zero();
+  auto add = [&](int body, const Vec3& r, double sign) {
+    if (body < 0) return;
+    const auto u = std::size_t(body);
+    Eigen::Matrix<double, 3, 6> J;
+    for (int i = 0; i < 3; ++i) J.row(i) << sign * dir[i].transpose(), sign * r.cross(dir[i]).transpose();
+    Eigen::Matrix<double, 6, 6> Minv = Eigen::Matrix<double, 6, 6>::Zero();
+    Minv.topLeftCorner<3, 3>() = bodies_->inv_mass[u] * Mat3::Identity();
+    Minv.bottomRightCorner<3, 3>() = bodies_->inv_inertia[u];
+    block += J * Minv * J.transpose();
+  };
+  add(a_[k], wide(ra_[k]), -1.0);
+  add(b_[k], wide(rb_[k]), 1.0);
+  return block.cwiseAbs().rowwise().sum().maxCoeff();
+}
+
+SolveStats CcpProblem::solve_pgs(Span x, const SolverSettings& s, SolverWorkspace& ws) const {
   const SolverBodies& B = *bodies_;
-  std::vector<Vec3> v, w;
+  std::vector<Vec3>& v = ws.v;
+  std::vector<Vec3>& w = ws.w;
   velocities(x, v, w);
-  const double omega = s.pgs_relaxation;
   const std::size_t nc = a_.size();
-  VectorXd g;
+  // One step per contact block: with the normal row's 1/diag alone, a
+  // cluster's tangential rows (large lever arms) were over-stepped and diverged.
+  ws.d.resize(nc);
+  for (std::size_t k = 0; k < nc; ++k) {
+    const double bound = block_bound(k);
+    ws.d[k] = bound > 0.0 ? s.pgs_relaxation / bound : 0.0;
+  }
+  ws.g.resize(x.size());
+  const Span g(ws.g);
   SolveStats stats;
   for (int it = 0; it < s.max_iterations; ++it) {
     for (std::size_t k = 0; k < nc; ++k) {
-      if (diag_[k] <= 0.0) continue;
-      const Vec3 rel = point_velocity(v, w, b_[k], rb_[k]) - point_velocity(v, w, a_[k], ra_[k]);
-      const double step = omega / diag_[k];
-      const auto i = std::ptrdiff_t(3 * k);
-      double gn = x[i] - step * (n_[k].dot(rel) + bias_[k]);
-      double g1 = x[i + 1] - step * t1_[k].dot(rel);
-      double g2 = x[i + 2] - step * t2_[k].dot(rel);
+      const double step = ws.d[k];
+      if (step <= 0.0) continue;
+      const Vec3 ra = wide(ra_[k]), rb = wide(rb_[k]), n = wide(n_[k]), t1 = wide(t1_[k]), t2 = wide(t2_[k]);
+      const Vec3 rel = point_velocity(v, w, b_[k], rb) - point_velocity(v, w, a_[k], ra);
+      const std::size_t i = 3 * k;
+      double gn = x[i] - step * (n.dot(rel) + bias_[k]);
+      double g1 = x[i + 1] - step * t1.dot(rel);
+      double g2 = x[i + 2] - step * t2.dot(rel);
       project_cone(mu_[k], gn, g1, g2);
-      const Vec3 dP = n_[k] * (gn - x[i]) + t1_[k] * (g1 - x[i + 1]) + t2_[k] * (g2 - x[i + 2]);
+      const Vec3 dP = n * (gn - x[i]) + t1 * (g1 - x[i + 1]) + t2 * (g2 - x[i + 2]);
       x[i] = gn;
       x[i + 1] = g1;
       x[i + 2] = g2;
       const auto a = std::size_t(a_[k]), b = std::size_t(b_[k]);
       v[a] -= B.inv_mass[a] * dP;
-      w[a] -= B.inv_inertia[a] * ra_[k].cross(dP);
+      w[a] -= B.inv_inertia[a] * ra.cross(dP);
       v[b] += B.inv_mass[b] * dP;
-      w[b] += B.inv_inertia[b] * rb_[k].cross(dP);
+      w[b] += B.inv_inertia[b] * rb.cross(dP);
     }
     for (std::size_t j = 0; j < rows_.size(); ++j) {
       if (row_diag_[j] <= 0.0) continue;
       const BilateralRow& row = rows_[j];
-      double& xi = x[std::ptrdiff_t(3 * nc + j)];
+      double& xi = x[3 * nc + j];
       const double next = std::clamp(
-          xi - omega / row_diag_[j] * (row_velocity(v, w, row) + row.bias), row.lo, row.hi);
+          xi - s.pgs_relaxation / row_diag_[j] * (row_velocity(v, w, row) + row.bias), row.lo, row.hi);
       apply_row(B, row, next - xi, v, w);
       xi = next;
     }

@@ -8,12 +8,20 @@
 // N is never formed: N x is "scatter impulses into body velocities, gather
 // constraint velocities". Scatter runs per body over a body->contact adjacency
 // list and gather per contact, so every sum has a fixed order and the result
-// is bitwise the same for any number of threads.
+// is bitwise the same for any number of threads. Reductions over rows go
+// through fixed chunks added in chunk order, for the same reason.
+//
+// The contact frames and lever arms are stored in float: the kernel streams
+// them every iteration and is bound by memory bandwidth. They are relative
+// quantities (unit vectors, lever arms of a few mm, at most the drum radius),
+// so float's 6e-8 relative error moves a contact point by nanometres; scatter
+// and gather read the same rounded D, so N stays exactly symmetric.
 #pragma once
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <span>
 #include <vector>
 
 #include "collision/contacts.hpp"
@@ -21,9 +29,15 @@
 #include "dynamics/adjacency.hpp"
 #include "dynamics/model.hpp"
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 namespace ces {
 
-using Eigen::VectorXd;
+using Vec3f = Eigen::Vector3f;
+using Span = std::span<double>;
+using ConstSpan = std::span<const double>;
 
 // Bodies as the solver sees them: particles, then machine bodies.
 struct SolverBodies {
@@ -51,62 +65,77 @@ struct SolveStats {
   bool converged = false;
 };
 
+// The solvers' vectors. They live across steps and only grow (std::vector
+// keeps its capacity), so a run stops allocating once its contact count peaks.
+struct SolverWorkspace {
+  std::vector<double> r, g, gx, y, x1, best, d, nd;
+  std::vector<Vec3> v, w;  // projected Gauss-Seidel's running velocities
+};
+
 class CcpProblem {
  public:
   // Builds the problem for this step. `rows` are the joints' and motors' rows.
   void assemble(const Contacts& contacts, const SolverBodies& bodies,
-                std::vector<BilateralRow> rows, double h, const ContactSettings& settings);
+                const std::vector<BilateralRow>& rows, double h, const ContactSettings& settings);
 
   std::size_t contact_count() const { return a_.size(); }
   std::size_t row_count() const { return 3 * a_.size() + rows_.size(); }
 
   // g = N x + r = J (v_free + M^-1 J^T x) + b.
-  void gradient(const VectorXd& x, VectorXd& g) const;
+  void gradient(ConstSpan x, Span g) const;
   // y = N x.
-  void multiply(const VectorXd& x, VectorXd& y) const;
-  void project(VectorXd& x) const;
+  void multiply(ConstSpan x, Span y) const;
+  void project(Span x) const;
+  // out = Π(y - step g), row by row: one pass, no temporaries.
+  void projected_step(ConstSpan y, ConstSpan g, double step, Span out) const;
   // Projected-gradient residual (x - Π(x - s g)) / s, s = 1 / max diag N.
-  void residual(const VectorXd& x, const VectorXd& g, double& rms, double& max) const;
+  void residual(ConstSpan x, ConstSpan g, double& rms, double& max) const;
   // Upper bound on the largest eigenvalue of N (Gershgorin-like, cheap).
   double diagonal_max() const { return diag_max_; }
 
   // Final velocities v_free + M^-1 J^T x.
-  void velocities(const VectorXd& x, std::vector<Vec3>& v, std::vector<Vec3>& w) const;
+  void velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>& w) const;
 
   // Contact impulses as world vectors (normal + friction), for warm starts:
   // a world vector survives the rotation of the tangent frame between steps.
-  void world_impulses(const VectorXd& x, std::vector<Vec3>& out) const;
+  void world_impulses(ConstSpan x, std::vector<Vec3>& out) const;
   // Initial guess: each contact's previous world impulse (matched by key;
   // prev_keys sorted) re-expressed in its new frame; bilateral rows
   // keep their previous values.
   void warm_start(const std::vector<ContactKey>& keys, const std::vector<ContactKey>& prev_keys,
-                  const std::vector<Vec3>& prev_impulse, const VectorXd& prev_x,
-                  VectorXd& x) const;
+                  const std::vector<Vec3>& prev_impulse, ConstSpan prev_x, Span x) const;
 
   // Projected Gauss-Seidel sweeps, in place (needs row access).
-  SolveStats solve_pgs(VectorXd& x, const SolverSettings& s) const;
+  SolveStats solve_pgs(Span x, const SolverSettings& s, SolverWorkspace& ws) const;
+
+  // Sums acc(k, mu_k, part) over contacts k (rows 3k..3k+2) and
+  // row(i, lo, hi, part) over bilateral rows i, in fixed chunks of contacts
+  // added in chunk order: the same bits for any thread count.
+  // Part needs += and a default constructor that gives the neutral element.
+  template <class Part, class ContactFn, class RowFn>
+  Part reduce(ContactFn acc, RowFn row) const;
 
  private:
   // dv = M^-1 J^T x (+ v_free); y = J v (+ b).
-  void scatter(const VectorXd& x, bool add_free, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
-  void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, VectorXd& y) const;
+  void scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
+  void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, Span y) const;
+  double block_bound(std::size_t k) const;
 
   const SolverBodies* bodies_ = nullptr;
   // Contacts, structure of arrays.
   std::vector<std::int32_t> a_, b_;
-  std::vector<Vec3> n_, t1_, t2_, ra_, rb_;
+  std::vector<Vec3f> n_, t1_, t2_, ra_, rb_;
   std::vector<double> mu_, bias_, diag_;
   std::vector<BilateralRow> rows_;
   std::vector<double> row_diag_;
   ContactAdjacency adj_;  // bodies with finite mass
   double diag_max_ = 1.0;
   mutable std::vector<Vec3> dv_, dw_, impulse_;
-  mutable std::vector<double> partial_sum_, partial_max_;
 };
 
-SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, VectorXd& x);
-SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, VectorXd& x);
-SolveStats solve(const CcpProblem& p, const SolverSettings& s, VectorXd& x);
+SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);
+SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);
+SolveStats solve(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);
 
 // Projection of (gn, gt1, gt2) onto the cone |gt| <= mu gn. Inline: it runs
 // twice per contact per iteration.
@@ -116,10 +145,13 @@ inline void project_cone(double mu, double& gn, double& gt1, double& gt2) {
     gt1 = gt2 = 0.0;
     return;
   }
+  // Inside the cone (sticking contacts, the common case): no square root.
+  const double s2 = gt1 * gt1 + gt2 * gt2;
+  if (gn >= 0.0 && s2 <= mu * mu * gn * gn) return;
   // Plain sqrt, not std::hypot: impulses cannot overflow, and hypot's
   // careful scaling made it a quarter of the solve time.
-  const double s = std::sqrt(gt1 * gt1 + gt2 * gt2);
-  if (s <= mu * gn) return;  // inside the cone
+  const double s = std::sqrt(s2);
+  if (s <= mu * gn) return;  // on the boundary, up to rounding
   if (mu * s <= -gn) {       // inside the polar cone: the apex
     gn = gt1 = gt2 = 0.0;
     return;
@@ -129,6 +161,30 @@ inline void project_cone(double mu, double& gn, double& gt1, double& gt2) {
   gn = n;
   gt1 *= scale;
   gt2 *= scale;
+}
+
+template <class Part, class ContactFn, class RowFn>
+Part CcpProblem::reduce(ContactFn acc, RowFn row) const {
+  constexpr std::ptrdiff_t kChunk = 2048;  // contacts; fixed, so sums do not depend on threads
+  const auto nc = std::ptrdiff_t(a_.size());
+  const std::ptrdiff_t chunks = (nc + kChunk - 1) / kChunk;
+  // Grows only: one buffer per Part type and thread of the caller.
+  // (Named through a reference: inside the parallel loop the thread_local
+  // itself would be each worker's own, empty, instance.)
+  static thread_local std::vector<Part> buffer;
+  std::vector<Part>& partial = buffer;
+  partial.assign(std::size_t(chunks), Part{});
+#pragma omp parallel for schedule(static) if (chunks > 1)
+  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
+    Part& part = partial[std::size_t(ch)];
+    const std::ptrdiff_t end = std::min(nc, (ch + 1) * kChunk);
+    for (std::ptrdiff_t k = ch * kChunk; k < end; ++k) acc(k, mu_[std::size_t(k)], part);
+  }
+  Part total{};
+  for (const Part& part : partial) total += part;
+  for (std::size_t j = 0; j < rows_.size(); ++j)
+    row(3 * nc + std::ptrdiff_t(j), rows_[j].lo, rows_[j].hi, total);
+  return total;
 }
 
 }  // namespace ces

@@ -1,122 +1,185 @@
 // Projected-gradient solvers for the CCP (see ccp.hpp). Both take x as the
 // warm start and return the best iterate found.
 #include <algorithm>
+#include <array>
 #include <cmath>
-#include <deque>
 
 #include "dynamics/ccp.hpp"
 
 namespace ces {
 namespace {
 
-// f(x) = 1/2 x^T N x + r^T x = 1/2 x^T (g + r) with g = N x + r; r = g(0).
-double objective(const VectorXd& x, const VectorXd& g, const VectorXd& r) {
-  return 0.5 * (x.dot(g) + x.dot(r));
+constexpr std::ptrdiff_t kParallelMin = 768;  // rows; below this, threads cost more than they save
+
+Span sized(std::vector<double>& v, std::size_t m) {
+  v.resize(m);
+  return Span(v);
 }
+
+void copy(ConstSpan from, Span to) { std::copy(from.begin(), from.end(), to.begin()); }
+
+double dot(ConstSpan a, ConstSpan b) {
+  return Eigen::Map<const Eigen::VectorXd>(a.data(), std::ptrdiff_t(a.size()))
+      .dot(Eigen::Map<const Eigen::VectorXd>(b.data(), std::ptrdiff_t(b.size())));
+}
+
+// The sums an APGD iteration needs about a trial point x1 taken from y,
+// in one pass (see solve_apgd).
+struct TrialPart {
+  double dd = 0, dnd = 0, uphill = 0, res_sum = 0, res_max = 0;
+  TrialPart& operator+=(const TrialPart& o) {
+    dd += o.dd;
+    dnd += o.dnd;
+    uphill += o.uphill;
+    res_sum += o.res_sum;
+    res_max = std::max(res_max, o.res_max);
+    return *this;
+  }
+};
 
 struct Best {
   SolveStats stats;
-  VectorXd x;
   double residual = std::numeric_limits<double>::infinity();
-  void offer(const VectorXd& candidate, double rms, double max) {
-    if (rms < residual) {
-      residual = rms;
-      x = candidate;
-      stats.residual = rms;
-      stats.residual_max = max;
-    }
+  bool improves(double rms) const { return rms < residual; }
+  void take(double rms, double max) {
+    residual = stats.residual = rms;
+    stats.residual_max = max;
   }
 };
 
 }  // namespace
 
 // Accelerated projected gradient descent with adaptive step, backtracking and
-// gradient restart (Mazhar, Heyn, Negrut, Tasora, ACM TOG 34(3), 2015, Alg. 2).
-SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, VectorXd& x) {
-  const auto m = std::ptrdiff_t(p.row_count());
-  Best best;
+// gradient restart (Mazhar, Heyn, Negrut, Tasora, ACM TOG 34(3), 2015, Alg. 2),
+// with one product N x per iteration instead of the paper's two: the gradient
+// is affine, so the gradient at the extrapolated point
+//   y' = (1 + beta) x1 - beta x  is  (1 + beta) g(x1) - beta g(x),
+// and f is quadratic, so the sufficient-decrease test
+//   f(x1) <= f(y) + g(y).d + L/2 |d|^2,  d = x1 - y,
+// is exactly d.(g(x1) - g(y)) <= L |d|^2, which needs no objective values.
+// The sums of an iteration come from one fused pass over the rows.
+SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws) {
+  const std::size_t m = p.row_count();
   if (m == 0) return {0, 0.0, 0.0, true};
-  VectorXd r, g, gx, y = x, x1, y1, d;
-  p.gradient(VectorXd::Zero(m), r);
-  // Initial Lipschitz estimate from a secant through a perturbed point.
-  VectorXd probe = x;
-  probe.array() += 1.0 / p.diagonal_max();
-  VectorXd Nd;
-  p.multiply(x - probe, Nd);
-  double L = std::max(Nd.norm() / (x - probe).norm(), 1e-12 * p.diagonal_max());
+  const Span gx = sized(ws.gx, m), y = sized(ws.y, m), gy = sized(ws.g, m), x1 = sized(ws.x1, m),
+             g1 = sized(ws.nd, m), best = sized(ws.best, m), probe = sized(ws.d, m);
+  const double inv_s = p.diagonal_max(), s_res = 1.0 / inv_s;  // the residual's step
+  p.gradient(x, gx);
+  copy(x, y);
+  copy(gx, gy);
+  copy(x, best);
+  // Initial Lipschitz estimate: |N u| / |u| along u = (1, ..., 1).
+  std::fill(probe.begin(), probe.end(), 1.0);
+  p.multiply(probe, x1);
+  double L = std::max(std::sqrt(dot(x1, x1) / double(m)), 1e-12 * inv_s);
+  const double L_cap = 1e3 * inv_s * double(m);
   double theta = 1.0;
+  Best record;
   int it = 0;
   for (; it < s.max_iterations; ++it) {
-    p.gradient(y, g);
-    const double fy = objective(y, g, r);
+    TrialPart t;
     for (;;) {
-      x1 = y - g / L;
-      p.project(x1);
-      p.gradient(x1, gx);
-      d = x1 - y;
-      if (objective(x1, gx, r) <= fy + g.dot(d) + 0.5 * L * d.squaredNorm() + 1e-15 * std::abs(fy) ||
-          L > 1e3 * p.diagonal_max() * double(m))
-        break;
+      p.projected_step(y, gy, 1.0 / L, x1);
+      p.gradient(x1, g1);
+      t = p.reduce<TrialPart>(
+          [&](std::ptrdiff_t k, double mu, TrialPart& part) {
+            const auto i = 3 * std::size_t(k);
+            double q[3] = {x1[i] - s_res * g1[i], x1[i + 1] - s_res * g1[i + 1],
+                           x1[i + 2] - s_res * g1[i + 2]};
+            project_cone(mu, q[0], q[1], q[2]);
+            for (std::size_t r = 0; r < 3; ++r) {
+              const double d = x1[i + r] - y[i + r], res = (x1[i + r] - q[r]) * inv_s;
+              part.dd += d * d;
+              part.dnd += d * (g1[i + r] - gy[i + r]);
+              part.uphill += gy[i + r] * (x1[i + r] - x[i + r]);
+              part.res_sum += res * res;
+              part.res_max = std::max(part.res_max, std::abs(res));
+            }
+          },
+          [&](std::ptrdiff_t row, double lo, double hi, TrialPart& part) {
+            const auto i = std::size_t(row);
+            const double d = x1[i] - y[i];
+            const double res = (x1[i] - std::clamp(x1[i] - s_res * g1[i], lo, hi)) * inv_s;
+            part.dd += d * d;
+            part.dnd += d * (g1[i] - gy[i]);
+            part.uphill += gy[i] * (x1[i] - x[i]);
+            part.res_sum += res * res;
+            part.res_max = std::max(part.res_max, std::abs(res));
+          });
+      if (t.dnd <= L * t.dd * (1.0 + 1e-10) || L > L_cap) break;
       L *= 2.0;
     }
-    double rms, max;
-    p.residual(x1, gx, rms, max);
-    best.offer(x1, rms, max);
+    const double rms = std::sqrt(t.res_sum / double(m));
     if (rms <= s.tolerance) {
-      best.stats.converged = true;
-      ++it;
-      break;
+      record.take(rms, t.res_max);
+      record.stats.converged = true;
+      record.stats.iterations = it + 1;
+      copy(x1, x);
+      return record.stats;
     }
+    const bool improves = record.improves(rms);
+    if (improves) record.take(rms, t.res_max);
     const double theta1 = 0.5 * (-theta * theta + theta * std::sqrt(theta * theta + 4.0));
     const double beta = theta * (1.0 - theta) / (theta * theta + theta1);
-    y1 = (1.0 + beta) * x1 - beta * x;
-    if (g.dot(x1 - x) > 0.0) {  // restart: momentum points uphill
-      y1 = x1;
-      theta = 1.0;
-    } else {
-      theta = theta1;
+    const bool restart = t.uphill > 0.0;  // momentum points uphill
+    theta = restart ? 1.0 : theta1;
+    const double ca = restart ? 1.0 : 1.0 + beta, cb = restart ? 0.0 : beta;
+    const auto rows = std::ptrdiff_t(m);
+#pragma omp parallel for schedule(static) if (rows > kParallelMin)
+    for (std::ptrdiff_t j = 0; j < rows; ++j) {
+      const auto i = std::size_t(j);
+      if (improves) best[i] = x1[i];
+      y[i] = ca * x1[i] - cb * x[i];
+      gy[i] = ca * g1[i] - cb * gx[i];
+      x[i] = x1[i];
+      gx[i] = g1[i];
     }
-    x.swap(x1);
-    y.swap(y1);
     L *= 0.9;
   }
-  best.stats.iterations = it;
-  x = best.x;
-  return best.stats;
+  record.stats.iterations = it;
+  copy(best, x);
+  return record.stats;
 }
 
 // Spectral projected gradient with Barzilai-Borwein steps and a non-monotone
 // line search (Birgin, Martinez, Raydan, SIAM J. Optim. 10(4), 2000), the
 // seed paper's method. f is quadratic, so the line search is exact arithmetic
 // on gd and dNd: one product N d per iteration.
-SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, VectorXd& x) {
-  const auto m = std::ptrdiff_t(p.row_count());
+SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws) {
+  const std::size_t m = p.row_count();
   if (m == 0) return {0, 0.0, 0.0, true};
   constexpr int kMemory = 10;
   constexpr double kSufficient = 1e-4;
   const double alpha_min = 1e-10 / p.diagonal_max(), alpha_max = 1e10 / p.diagonal_max();
+  const Span r = sized(ws.r, m), g = sized(ws.g, m), d = sized(ws.d, m), nd = sized(ws.nd, m),
+             best = sized(ws.best, m);
   p.project(x);
-  VectorXd r, g, d, Nd;
-  p.gradient(VectorXd::Zero(m), r);
+  std::fill(d.begin(), d.end(), 0.0);
+  p.gradient(d, r);
   p.gradient(x, g);
-  double f = objective(x, g, r);
-  std::deque<double> history{f};
+  // f(x) = 1/2 x^T N x + r^T x = 1/2 x^T (g + r) with g = N x + r.
+  double f = 0.5 * (dot(x, g) + dot(x, r));
+  std::array<double, kMemory> history;
+  history.fill(f);
   double alpha = 1.0 / p.diagonal_max();
-  Best best;
+  Best record;
   int it = 0;
-  for (; it < s.max_iterations; ++it) {
+  for (; it <= s.max_iterations; ++it) {
     double rms, max;
     p.residual(x, g, rms, max);
-    best.offer(x, rms, max);
+    if (record.improves(rms)) {
+      record.take(rms, max);
+      copy(x, best);
+    }
     if (rms <= s.tolerance) {
-      best.stats.converged = true;
+      record.stats.converged = true;
       break;
     }
-    d = x - alpha * g;
-    p.project(d);
-    d -= x;
-    p.multiply(d, Nd);
-    const double gd = g.dot(d), dNd = d.dot(Nd);
+    if (it == s.max_iterations) break;
+    p.projected_step(x, g, alpha, d);
+    for (std::size_t i = 0; i < m; ++i) d[i] -= x[i];
+    p.multiply(d, nd);
+    const double gd = dot(g, d), dNd = dot(d, nd);
     const double f_ref = *std::max_element(history.begin(), history.end());
     double lambda = 1.0;
     double f_new = f + gd + 0.5 * dNd;
@@ -126,29 +189,25 @@ SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, VectorXd& x) 
       lambda = std::clamp(trial, 0.1 * lambda, 0.5 * lambda);
       f_new = f + lambda * gd + 0.5 * lambda * lambda * dNd;
     }
-    x += lambda * d;
-    g += lambda * Nd;
+    for (std::size_t i = 0; i < m; ++i) {
+      x[i] += lambda * d[i];
+      g[i] += lambda * nd[i];
+    }
     f = f_new;
-    history.push_back(f);
-    if (history.size() > kMemory) history.pop_front();
-    const double sy = lambda * lambda * dNd, ss = lambda * lambda * d.squaredNorm();
+    history[std::size_t(it % kMemory)] = f;
+    const double sy = lambda * lambda * dNd, ss = lambda * lambda * dot(d, d);
     alpha = sy > 0.0 ? std::clamp(ss / sy, alpha_min, alpha_max) : alpha_max;
   }
-  if (!best.stats.converged) {
-    double rms, max;
-    p.residual(x, g, rms, max);
-    best.offer(x, rms, max);
-  }
-  best.stats.iterations = it;
-  x = best.x;
-  return best.stats;
+  record.stats.iterations = std::min(it, s.max_iterations);
+  copy(best, x);
+  return record.stats;
 }
 
-SolveStats solve(const CcpProblem& p, const SolverSettings& s, VectorXd& x) {
+SolveStats solve(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws) {
   switch (s.method) {
-    case SolverMethod::APGD: return solve_apgd(p, s, x);
-    case SolverMethod::SPG: return solve_spg(p, s, x);
-    case SolverMethod::PGS: return p.solve_pgs(x, s);
+    case SolverMethod::APGD: return solve_apgd(p, s, x, ws);
+    case SolverMethod::SPG: return solve_spg(p, s, x, ws);
+    case SolverMethod::PGS: return p.solve_pgs(x, s, ws);
   }
   return {};
 }

@@ -160,10 +160,11 @@ const StepStats& World::step() {
   static const Contacts kNoContacts;
   const Contacts& ccp_contacts = dem ? kNoContacts : contacts_;
   problem_.assemble(ccp_contacts, solver_bodies_, rows_, h, m.contact);
+  gamma_.resize(problem_.row_count());
   if (m.solver.warm_start)
     problem_.warm_start(ccp_contacts.key, prev_keys_, prev_impulse_, prev_gamma_, gamma_);
   else
-    gamma_.setZero(std::ptrdiff_t(problem_.row_count()));
+    std::fill(gamma_.begin(), gamma_.end(), 0.0);
   for (std::size_t k = 0; k < contacts_.size(); ++k) {
     const double pen = -contacts_.gap[k];
     stats.max_penetration = std::max(stats.max_penetration, pen);
@@ -172,7 +173,7 @@ const StepStats& World::step() {
   stats.seconds.assemble = seconds_since(t0);
 
   t0 = Clock::now();
-  stats.solver = solve(problem_, m.solver, gamma_);
+  stats.solver = solve(problem_, m.solver, gamma_, workspace_);
   stats.seconds.solve = seconds_since(t0);
 
   t0 = Clock::now();
@@ -226,18 +227,24 @@ void World::integrate(double h) {
 
 void World::remember_impulses() {
   problem_.world_impulses(gamma_, impulse_scratch_);
-  const std::size_t n = contacts_.size();
+  prev_gamma_ = gamma_;
+  const std::vector<ContactKey>& keys = contacts_.key;
+  if (std::is_sorted(keys.begin(), keys.end())) {  // the collider's usual order
+    prev_keys_ = keys;
+    prev_impulse_.swap(impulse_scratch_);
+    return;
+  }
+  const std::size_t n = keys.size();
   order_scratch_.resize(n);
   std::iota(order_scratch_.begin(), order_scratch_.end(), std::size_t{0});
   std::sort(order_scratch_.begin(), order_scratch_.end(),
-            [&](std::size_t a, std::size_t b) { return contacts_.key[a] < contacts_.key[b]; });
+            [&](std::size_t a, std::size_t b) { return keys[a] < keys[b]; });
   prev_keys_.resize(n);
   prev_impulse_.resize(n);
   for (std::size_t k = 0; k < n; ++k) {
-    prev_keys_[k] = contacts_.key[order_scratch_[k]];
+    prev_keys_[k] = keys[order_scratch_[k]];
     prev_impulse_[k] = impulse_scratch_[order_scratch_[k]];
   }
-  prev_gamma_ = gamma_;
 }
 
 }  // namespace ces

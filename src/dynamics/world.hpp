@@ -61,7 +61,7 @@ class World {
   const StepStats& last_step() const { return stats_; }
   const Contacts& contacts() const { return contacts_; }
   // Last step's impulses: 3 per contact (normal, t1, t2), then bilateral rows.
-  const Eigen::VectorXd& impulses() const { return gamma_; }
+  ConstSpan impulses() const { return gamma_; }
 
   // Mass and inertia from the shape's volume and the material's density.
   std::uint64_t add_particle(int shape, double scale, int material, const Vec3& position,
@@ -100,11 +100,12 @@ class World {
   SolverBodies solver_bodies_;
   CcpProblem problem_;
   std::vector<BilateralRow> rows_;
-  Eigen::VectorXd gamma_;
+  SolverWorkspace workspace_;
+  std::vector<double> gamma_;
   // Warm start: last step's impulses, sorted by contact key.
   std::vector<ContactKey> prev_keys_;
   std::vector<Vec3> prev_impulse_;
-  Eigen::VectorXd prev_gamma_;
+  std::vector<double> prev_gamma_;
   std::vector<Vec3> impulse_scratch_;
   std::vector<std::size_t> order_scratch_;
   DemContacts dem_;
