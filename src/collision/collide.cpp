@@ -36,7 +36,8 @@ void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double 
 template <class Fill>
 void run_chunked(std::size_t n, std::vector<Contacts>& chunks, Contacts& out, Fill fill) {
   const std::size_t count = (n + kChunk - 1) / kChunk;
-  chunks.resize(count);
+  // Never shrink: the buffers keep their capacity from step to step.
+  if (chunks.size() < count) chunks.resize(count);
 #pragma omp parallel for schedule(static) if (count > 1)
   for (std::size_t ch = 0; ch < count; ++ch) {
     chunks[ch].clear();
@@ -107,7 +108,8 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   const int solver_index = int(p.size()) + body;
   const auto& mat = model.materials;
   run_chunked(p.size(), chunks_, out, [&](std::size_t begin, std::size_t end, Contacts& part) {
-    std::vector<geo::SurfaceHit> hits;
+    // Per thread and kept across steps: no allocation per chunk.
+    static thread_local std::vector<geo::SurfaceHit> hits;
     for (std::size_t i = begin; i < end; ++i) {
       // Cull by the particle's bounding sphere in the body frame.
       const Vec3 local_centre = pose.inverse_apply(p.position[i]);
