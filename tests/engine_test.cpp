@@ -6,6 +6,7 @@
 #include <cstring>
 #include <memory>
 
+#include "dynamics/ccp.hpp"
 #include "dynamics/world.hpp"
 
 namespace ces {
@@ -376,6 +377,29 @@ TEST(Engine, SphereSlidesAcrossMeshEdgesWithoutBumps) {
 }
 
 // ---------------------------------------------------------------- solvers
+
+// Moreau's decomposition: x = Π_K(x) + Π_K°(x) with the two parts
+// orthogonal, for the friction cone K and its polar K° = {mu |t| <= -n}.
+// 1e5 random points over all four cases. Tolerance 1e-12 relative.
+TEST(Engine, ConeProjectionIsMoreauDecomposition) {
+  std::uint64_t state = 7;
+  auto uniform = [&] {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return double(state >> 11) * 0x1.0p-53 * 2.0 - 1.0;
+  };
+  for (int i = 0; i < 100000; ++i) {
+    const double mu = i % 10 == 0 ? 0.0 : 1.5 * (uniform() + 1.0) / 2.0;
+    const Vec3 x(uniform(), uniform(), uniform());
+    Vec3 p = x;
+    project_cone(mu, p[0], p[1], p[2]);
+    const Vec3 d = x - p;
+    const double tol = 1e-12 * x.norm();
+    ASSERT_LE(std::hypot(p[1], p[2]), mu * p[0] + tol) << "outside the cone";
+    ASSERT_LE(mu * std::hypot(d[1], d[2]), -d[0] + tol) << "remainder outside the polar cone";
+    ASSERT_NEAR(p.dot(d), 0.0, tol * x.norm()) << "parts not orthogonal";
+  }
+}
+
 
 // A 10-layer stack (3 x 3 spheres per layer) solved from rest without warm
 // start: APGD needs fewer iterations than projected Gauss-Seidel to reach the

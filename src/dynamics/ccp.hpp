@@ -145,20 +145,20 @@ inline void project_cone(double mu, double& gn, double& gt1, double& gt2) {
     gt1 = gt2 = 0.0;
     return;
   }
-  // Inside the cone (sticking contacts, the common case): no square root.
-  const double s2 = gt1 * gt1 + gt2 * gt2;
-  if (gn >= 0.0 && s2 <= mu * mu * gn * gn) return;
-  // Plain sqrt, not std::hypot: impulses cannot overflow, and hypot's
-  // careful scaling made it a quarter of the solve time.
-  const double s = std::sqrt(s2);
-  if (s <= mu * gn) return;  // on the boundary, up to rounding
-  if (mu * s <= -gn) {       // inside the polar cone: the apex
+  // The common cases, sticking (inside the cone) and separating (inside the
+  // polar cone), are decided on squares: no square root, no division.
+  const double s2 = gt1 * gt1 + gt2 * gt2, mu2 = mu * mu;
+  if (gn >= 0.0 && s2 <= mu2 * gn * gn) return;
+  if (gn <= 0.0 && mu2 * s2 <= gn * gn) {
     gn = gt1 = gt2 = 0.0;
     return;
   }
-  const double n = (mu * s + gn) / (mu * mu + 1.0);
-  const double scale = mu * n / s;
-  gn = n;
+  // Sliding: onto the cone's surface. s > 0 here (s = 0 fell in a case above).
+  // Plain sqrt, not std::hypot: impulses cannot overflow. One division.
+  const double s = std::sqrt(s2);
+  const double along = mu * s + gn, q = 1.0 / ((mu2 + 1.0) * s);
+  gn = along * s * q;
+  const double scale = mu * along * q;
   gt1 *= scale;
   gt2 *= scale;
 }
