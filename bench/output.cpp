@@ -193,6 +193,14 @@ bool scene_full(const Results& r) {
   return r.scene && r.scene->sets.empty() && r.scene->complete && r.scene->wall_total > 0;
 }
 
+// Why the scene's targets cannot be judged.
+std::string scene_missing(const Results& r) {
+  if (!r.scene) return "not run";
+  if (!r.scene->error.empty()) return "failed: " + r.scene->error;
+  if (!r.scene->sets.empty()) return "shortened run only";
+  return "incomplete run";
+}
+
 void header(std::ostream& o, const Results& r) {
   const Machine& m = r.machine;
   o << "# ces-sim bench, " << m.date << (r.quick ? " (--quick)" : "") << "\n\n"
@@ -222,7 +230,8 @@ void target_rows(std::ostream& o, const Results& r) {
       << f("%.2f", a.wall / a.stages.solve) << "x) | " << verdict(k <= 2) << " |\n";
   } else {
     o << "| whole step <= 2x solve | bed: " << f("%.2f", a.wall / a.stages.solve)
-      << "x at a fixed " << r.iterations << " iterations | not judged: needs the full scene |\n";
+      << "x at a fixed " << r.iterations << " iterations | not judged: scene " << scene_missing(r)
+      << " |\n";
   }
   const double up = a.wall / b.wall;
   o << "| 1-to-2-thread speed-up >= 1.7 | whole step " << f("%.2f", up) << ", solve "
@@ -233,8 +242,7 @@ void target_rows(std::ostream& o, const Results& r) {
       << f("%.0f", r.scene->process_wall) << " s | " << verdict(r.scene->process_wall < 120)
       << " |\n";
   else
-    o << "| ces_pcb (2 s) < 2 min | " << (r.scene ? "shortened run only" : "not run")
-      << " | not judged |\n";
+    o << "| ces_pcb (2 s) < 2 min | " << scene_missing(r) << " | not judged |\n";
   const bool fit = r.million.peak <= 4.0 * 1024 * 1024 * 1024;
   o << "| 1e6 particles < 4 GiB | " << gib(r.million.peak) << " peak, packed bed, "
     << count(r.million.contacts) << " contacts"

@@ -38,7 +38,7 @@ void read_summary(const std::string& path, SceneRun& run) {
   }
   run.name = j.value("scene", Json::object()).value("name", "");
   run.complete = j.value("complete", false);
-  run.threads = j.value("threads", 0);
+  run.threads = j.value("threads", run.threads);
   run.end_time = j.value("end_time_s", 0.0);
   run.simulated = j.value("simulated_time_s", 0.0);
   run.steps = j.value("steps", std::size_t(0));
@@ -69,8 +69,11 @@ SceneRun run_scene(const std::string& ces_sim, const std::string& scene,
   run.exit_code = p.exit_code;
   run.process_wall = p.wall;
   run.peak_rss = p.max_rss;
-  if (p.exit_code != 0) run.error = ces_sim + " exited with " + std::to_string(p.exit_code);
-  read_summary(out_dir + "/summary.json", run);
+  run.threads = threads;
+  // Exit code 3 (interrupted or failed run) still leaves a summary.json.
+  if (p.exit_code != 0) run.error = ces_sim + " exited with code " + std::to_string(p.exit_code);
+  if (p.exit_code == 0 || std::filesystem::exists(out_dir + "/summary.json"))
+    read_summary(out_dir + "/summary.json", run);
   return run;
 }
 
