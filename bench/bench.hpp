@@ -26,6 +26,7 @@ struct BedRun {
   std::size_t particles = 0, contacts = 0;
   int threads = 1, iterations = 0, steps = 0;  // iterations: the cap asked for
   double solver_iterations = 0;                 // mean per step, as run
+  double contact_iterations = 0;                // mean per step: contacts x iterations
   ces::StageTimes stages;  // mean per step, as the World timed them
   double wall = 0;         // mean per step, timed around World::step()
   // Contact-iterations (one contact in one solver iteration) per second of
@@ -35,8 +36,8 @@ struct BedRun {
 };
 
 // Builds a simple-cubic bed of n touching 1 mm spheres on a plane (about 3
-// contacts per sphere) and steps it; `work` (contact-iterations) sets the step
-// count, at least 2.
+// contacts per sphere) and steps it, put back to its start after every step;
+// `work` (contact-iterations) sets the step count, from 2 to 200.
 BedRun measure_bed(std::size_t n, int threads, int iterations, double work);
 
 // The pieces: a model (ground plane, one sphere shape, APGD at `iterations`
