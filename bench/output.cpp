@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <fstream>
 #include <set>
@@ -59,6 +60,8 @@ Machine read_machine() {
 #ifndef __OPTIMIZE__
   m.build += " (NOT OPTIMIZED: figures meaningless)";
 #endif
+  const char* wait = std::getenv("OMP_WAIT_POLICY");
+  m.build += std::string(", OMP_WAIT_POLICY=") + (wait ? wait : "(unset)");
   m.date = utc_now();
   m.load_start = load_average();
   return m;
