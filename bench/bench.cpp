@@ -1,180 +1,176 @@
-// ces_bench: solver throughput, per-stage step times and broadphase choice.
+// ces_bench: what issue 7 asks the bench to measure, in one run.
 //
-//   ces_bench [--quick] [--out DIR]
+//   ces_bench [--quick] [--out DIR] [--scene SCENE [--scene-set KEY=VALUE]...]
+//             [--no-scene] [--ces-sim PATH]
 //
-// Writes DIR/bench.csv (one row per measurement) and prints a short report.
-// Packed beds are simple-cubic lattices of touching spheres on a plane, so
-// every interior sphere has six contacts and the counts are reproducible.
+// - solver contact-iterations per second per core against contact count
+//   (packed beds of ~1e3 to ~1e6 contacts) and the time per step by stage;
+// - the 1-to-2-thread speed-up at ~1e5 contacts;
+// - cost per particle as the particle count doubles;
+// - peak memory per particle and per contact, and 1e6 particles' peak;
+// - grid against Bullet broadphase;
+// - with --scene, a scene end to end through ces-sim (wall time, stages).
+// Writes DIR/bench.csv (one row per figure) and DIR/report.md (the figures
+// against the issue's targets), and prints the report.
+// --quick runs smaller sizes (under a minute) and, unless --scene-set is
+// given, the scene to 0.1 s only; its figures are for checking the bench.
+// --no-scene cancels an earlier --scene (bench/run passes one).
 #include <omp.h>
 
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <string>
-#include <vector>
+#include <map>
+#include <utility>
 
-#include "collision/broadphase.hpp"
-#include "dynamics/world.hpp"
-
-#ifdef CES_HAVE_BULLET
-#include <BulletCollision/BroadphaseCollision/btDbvtBroadphase.h>
-#include <BulletCollision/BroadphaseCollision/btOverlappingPairCache.h>
-#endif
+#include "bench.hpp"
 
 namespace {
 
-using namespace ces;
-using Clock = std::chrono::steady_clock;
+using namespace bench;
+using Sizes = std::vector<std::size_t>;
 
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-struct Row {
-  std::string what;
-  std::size_t particles, contacts;
-  int threads;
-  double value;
-  std::string unit;
+struct Options {
+  bool quick = false;
+  std::string out = "bench/out", scene, ces_sim;
+  std::vector<std::string> scene_sets;
 };
 
-std::shared_ptr<Model> bed_model(int iterations) {
-  auto m = std::make_shared<Model>();
-  m->materials = MaterialTable({{"glass", 2500, 0.4, 0}}, {});
-  m->shapes.push_back(make_particle_shape({Vec3::Zero()}, {1.0}));
-  RigidBody ground;
-  ground.shape = geo::Plane{Vec3::UnitY(), 0.0};
-  m->bodies.push_back(ground);
-  m->solver.max_iterations = iterations;
-  m->solver.tolerance = 0.0;  // run every iteration: throughput, not convergence
+struct Plan {
+  Sizes sweep;                 // ~1e3 to ~1e6 contacts (about 3 per sphere)
+  std::size_t speedup = 0;     // ~1e5 contacts
+  Sizes growth;                // N, 2N, 4N, ...
+  std::size_t memory = 0;      // the per-particle and per-contact probes
+  bool million = false;        // measure 1e6 spheres (else extrapolate)
+  Sizes broadphase;
+  double work = 0;             // contact-iterations per bed measurement, at least
+};
+
+constexpr int kIterations = 100;
+
+Plan plan(bool quick) {
+  if (quick) return {{340, 1000, 3400, 10000, 34000}, 34000, {8500, 17000, 34000}, 10000, false,
+                     {10000}, 1e7};
+  return {{340, 1000, 3400, 10000, 34000, 100000, 340000}, 34000, {25000, 50000, 100000, 200000},
+          100000, true, {10000, 100000}, 5e7};
+}
+
+// Beds measured once per (spheres, threads), shared by the sections.
+class Beds {
+ public:
+  explicit Beds(double work) : work_(work) {}
+  const BedRun& get(std::size_t n, int threads) {
+    auto it = done_.find({n, threads});
+    if (it != done_.end()) return it->second;
+    std::fprintf(stderr, "bed of %zu spheres, %d thread(s) ... ", n, threads);
+    const BedRun b = measure_bed(n, threads, kIterations, work_);
+    std::fprintf(stderr, "%zu contacts, %d steps of %.3g s, %.1f M contact-it/s/core\n",
+                 b.contacts, b.steps, b.wall, b.rate_per_core() / 1e6);
+    return done_.emplace(std::pair{n, threads}, b).first->second;
+  }
+
+ private:
+  double work_;
+  std::map<std::pair<std::size_t, int>, BedRun> done_;
+};
+
+void measure_beds(const Plan& p, Results& r) {
+  Beds beds(p.work);
+  const int procs = r.machine.procs;
+  for (std::size_t n : p.sweep) r.sweep.push_back(beds.get(n, 1));
+  r.one = beds.get(p.speedup, 1);
+  if (procs > 1) r.two = beds.get(p.speedup, 2);
+  for (std::size_t n : p.growth) r.growth.push_back(beds.get(n, 1));
+}
+
+// Base + N per particle + contacts per contact, contacts per particle as packed.
+MemoryProbe extrapolate_million(const MemoryProbe& sparse, const MemoryProbe& packed) {
+  MemoryProbe m;
+  m.particles = 1000000;
+  m.contacts = std::size_t(double(packed.contacts) / packed.particles * m.particles);
+  const double per_particle = sparse.growth() / sparse.particles;
+  const double per_contact = (packed.growth() - sparse.growth()) / packed.contacts;
+  m.base = sparse.base;
+  m.peak = m.base + per_particle * m.particles + per_contact * m.contacts;
+  m.ok = sparse.ok && packed.ok;
   return m;
 }
 
-void fill_bed(World& w, std::size_t n, double r) {
-  const int side = int(std::ceil(std::cbrt(double(n))));
-  std::size_t count = 0;
-  for (int y = 0; count < n; ++y)
-    for (int x = 0; x < side && count < n; ++x)
-      for (int z = 0; z < side && count < n; ++z, ++count)
-        w.add_particle(0, r, 0, Vec3(2 * r * x, r + 2 * r * y, 2 * r * z));
+void measure_memory(const Plan& p, Results& r) {
+  const std::string exe = self_exe();
+  const int threads = r.machine.procs;
+  std::fprintf(stderr, "memory probes: %zu spheres apart and packed%s\n", p.memory,
+               p.million ? ", 1e6 packed" : "");
+  r.sparse = probe_memory(exe, p.memory, false, threads);
+  r.packed = probe_memory(exe, p.memory, true, threads);
+  r.million_measured = p.million;
+  r.million = p.million ? probe_memory(exe, 1000000, true, threads)
+                        : extrapolate_million(r.sparse, r.packed);
 }
 
-// Steps a packed bed and reports contact-iterations per second per core and
-// the time per step split by stage.
-void bench_solver(std::size_t n, int threads, int iterations, int steps, std::vector<Row>& rows) {
-  omp_set_num_threads(threads);
-  auto m = bed_model(iterations);
-  World w(m);
-  fill_bed(w, n, 0.001);
-  w.step();  // warm caches and the warm start
-  StageTimes total;
-  double solve_iterations = 0;
-  std::size_t contacts = 0;
-  for (int s = 0; s < steps; ++s) {
-    const StepStats& st = w.step();
-    total += st.seconds;
-    solve_iterations += st.solver.iterations;
-    contacts = st.contacts;
-  }
-  // APGD applies N twice per iteration (gradient at y and at the new iterate).
-  const double rate = double(contacts) * solve_iterations / total.solve / threads;
-  rows.push_back({"solver_contact_iterations_per_s_per_core", n, contacts, threads, rate, "1/s"});
-  const std::pair<const char*, double> stages[] = {
-      {"stage_broadphase", total.broadphase}, {"stage_narrowphase", total.narrowphase},
-      {"stage_assemble", total.assemble},     {"stage_solve", total.solve},
-      {"stage_integrate", total.integrate},   {"step_total", total.total()}};
-  for (const auto& [name, seconds] : stages)
-    rows.push_back({name, n, contacts, threads, seconds / steps, "s/step"});
+void measure_scene(const Options& o, Results& r) {
+  std::vector<std::string> sets = o.scene_sets;
+  if (o.quick && sets.empty()) sets.push_back("time.end=0.1s");
+  std::string ces_sim = o.ces_sim;
+  if (ces_sim.empty())  // build/bench/ces_bench -> build/ces-sim
+    ces_sim = (std::filesystem::path(self_exe()).parent_path().parent_path() / "ces-sim").string();
+  std::fprintf(stderr, "scene %s through %s ...\n", o.scene.c_str(), ces_sim.c_str());
+  r.scene = run_scene(ces_sim, o.scene, sets, o.out + "/scene", r.machine.procs);
+  if (!r.scene->error.empty()) std::fprintf(stderr, "scene: %s\n", r.scene->error.c_str());
 }
 
-std::vector<Vec3> random_cloud(std::size_t n, double r, std::vector<double>& radii) {
-  // A loose random packing (solid fraction ~0.3): what a falling curtain looks like.
-  const double side = std::cbrt(double(n) * 4.19 * r * r * r / 0.3);
-  std::vector<Vec3> c(n);
-  std::uint64_t s = 12345;
-  auto uniform = [&] {
-    s = s * 6364136223846793005ULL + 1442695040888963407ULL;
-    return double(s >> 11) * 0x1.0p-53;
-  };
-  for (auto& p : c) p = side * Vec3(uniform(), uniform(), uniform());
-  radii.assign(n, 1.2 * r);  // radius plus envelope
-  return c;
+int usage() {
+  std::fprintf(stderr,
+               "usage: ces_bench [--quick] [--out DIR] [--scene SCENE [--scene-set KEY=VALUE]...] "
+               "[--no-scene] [--ces-sim PATH]\n");
+  return 2;
 }
 
-void bench_broadphase(std::size_t n, std::vector<Row>& rows) {
-  omp_set_num_threads(1);
-  std::vector<double> radii;
-  const std::vector<Vec3> centres = random_cloud(n, 0.001, radii);
-  GridBroadphase grid;
-  std::vector<std::pair<std::int32_t, std::int32_t>> pairs;
-  grid.find_pairs(centres, radii, pairs);
-  const int reps = 5;
-  auto t0 = Clock::now();
-  for (int k = 0; k < reps; ++k) grid.find_pairs(centres, radii, pairs);
-  rows.push_back({"broadphase_grid", n, pairs.size(), 1, since(t0) / reps, "s"});
-#ifdef CES_HAVE_BULLET
-  // Bullet's dynamic AABB tree, used the way a stepper would: proxies persist,
-  // every step moves them (setAabb) and recomputes the overlapping pairs.
-  // Bullet fattens every AABB by gDbvtMargin (0.05 units, sized for metre-scale
-  // bodies); at mm scale that makes every pair overlap. Use the envelope.
-  gDbvtMargin = 0.1 * 0.001;
-  btDbvtBroadphase bp;
-  btDispatcher* no_dispatcher = nullptr;
-  std::vector<btBroadphaseProxy*> proxies(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const btVector3 lo(centres[i].x() - radii[i], centres[i].y() - radii[i], centres[i].z() - radii[i]);
-    const btVector3 hi(centres[i].x() + radii[i], centres[i].y() + radii[i], centres[i].z() + radii[i]);
-    proxies[i] = bp.createProxy(lo, hi, 0, nullptr, 1, 1, no_dispatcher);
+bool parse(int argc, char** argv, Options& o) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    const bool has_value = i + 1 < argc;
+    if (a == "--quick") o.quick = true;
+    else if (a == "--out" && has_value) o.out = argv[++i];
+    else if (a == "--scene" && has_value) o.scene = argv[++i];
+    else if (a == "--no-scene") o.scene.clear();
+    else if (a == "--scene-set" && has_value) o.scene_sets.push_back(argv[++i]);
+    else if (a == "--ces-sim" && has_value) o.ces_sim = argv[++i];
+    else return false;
   }
-  bp.calculateOverlappingPairs(no_dispatcher);
-  t0 = Clock::now();
-  for (int k = 0; k < reps; ++k) {
-    const double shift = 1e-6 * (k + 1);  // every proxy moves, as in a flow
-    for (std::size_t i = 0; i < n; ++i) {
-      const btVector3 lo(centres[i].x() - radii[i] + shift, centres[i].y() - radii[i], centres[i].z() - radii[i]);
-      const btVector3 hi(centres[i].x() + radii[i] + shift, centres[i].y() + radii[i], centres[i].z() + radii[i]);
-      bp.setAabb(proxies[i], lo, hi, no_dispatcher);
-    }
-    bp.calculateOverlappingPairs(no_dispatcher);
-  }
-  const double bullet = since(t0) / reps;
-  rows.push_back({"broadphase_bullet_dbvt", n,
-                  std::size_t(bp.getOverlappingPairCache()->getNumOverlappingPairs()), 1, bullet, "s"});
-  for (auto* p : proxies) bp.destroyProxy(p, no_dispatcher);
-#endif
+  return true;
+}
+
+void write_outputs(const Options& o, Results& r) {
+  std::filesystem::create_directories(o.out);
+  write_csv(r, o.out + "/bench.csv");
+  const std::string text = report(r);
+  std::ofstream(o.out + "/report.md") << text;
+  std::fputs(text.c_str(), stdout);
+  std::printf("\nwrote %s/bench.csv and %s/report.md\n", o.out.c_str(), o.out.c_str());
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false;
-  std::string out = "bench/out";
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--quick") quick = true;
-    else if (a == "--out" && i + 1 < argc) out = argv[++i];
-    else {
-      std::fprintf(stderr, "usage: ces_bench [--quick] [--out DIR]\n");
-      return 2;
-    }
-  }
-  std::vector<Row> rows;
-  const int procs = omp_get_num_procs();
-  for (std::size_t n : {std::size_t(10000), std::size_t(100000)}) {
-    if (quick && n > 10000) break;
-    bench_solver(n, 1, 100, quick ? 2 : 5, rows);
-    if (procs > 1) bench_solver(n, 2, 100, quick ? 2 : 5, rows);
-    bench_broadphase(n, rows);
-  }
-  std::filesystem::create_directories(out);
-  std::ofstream csv(out + "/bench.csv");
-  csv << "measure,particles,contacts,threads,value,unit\n";
-  for (const Row& r : rows) {
-    char line[256];
-    std::snprintf(line, sizeof line, "%s,%zu,%zu,%d,%.6g,%s\n", r.what.c_str(), r.particles,
-                  r.contacts, r.threads, r.value, r.unit.c_str());
-    csv << line;
-    std::fputs(line, stdout);
-  }
-  std::printf("wrote %s/bench.csv\n", out.c_str());
+  // Internal: the memory probe runs in a fresh process (memory.cpp).
+  if (argc == 5 && std::string(argv[1]) == "--probe-memory")
+    return run_memory_probe(std::stoul(argv[2]), std::string(argv[3]) == "packed",
+                            std::stoi(argv[4]));
+  Options o;
+  if (!parse(argc, argv, o)) return usage();
+  const auto t0 = Clock::now();
+  Results r;
+  r.quick = o.quick;
+  r.iterations = kIterations;
+  r.machine = read_machine();
+  const Plan p = plan(o.quick);
+  measure_beds(p, r);
+  measure_memory(p, r);
+  for (std::size_t n : p.broadphase) r.broadphase.push_back(measure_broadphase(n));
+  if (!o.scene.empty()) measure_scene(o, r);
+  r.machine.load_end = load_average();
+  r.seconds = since(t0);
+  write_outputs(o, r);
   return 0;
 }

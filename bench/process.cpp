@@ -1,0 +1,72 @@
+// Child processes (the memory probe, ces-sim) and /proc readings.
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "bench.hpp"
+
+namespace bench {
+
+std::string self_exe() { return std::filesystem::read_symlink("/proc/self/exe").string(); }
+
+double proc_status_bytes(const char* key) {
+  std::ifstream in("/proc/self/status");
+  const std::string prefix = std::string(key) + ":";
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind(prefix, 0) == 0) return 1024.0 * std::stod(line.substr(prefix.size()));  // kB
+  return 0;
+}
+
+namespace {
+
+[[noreturn]] void exec_child(const std::vector<std::string>& argv, int out_fd) {
+  if (out_fd >= 0) dup2(out_fd, STDOUT_FILENO);
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  execv(args[0], args.data());
+  std::fprintf(stderr, "ces_bench: cannot run %s: %s\n", args[0], std::strerror(errno));
+  _exit(127);
+}
+
+std::string read_all(int fd) {
+  std::string out;
+  char buf[4096];
+  for (ssize_t k; (k = read(fd, buf, sizeof buf)) > 0;) out.append(buf, std::size_t(k));
+  return out;
+}
+
+}  // namespace
+
+ProcessResult run_process(const std::vector<std::string>& argv, bool capture) {
+  ProcessResult r;
+  int fds[2] = {-1, -1};
+  if (capture && pipe(fds) != 0) return r;
+  std::fflush(nullptr);
+  const auto t0 = Clock::now();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    if (capture) close(fds[0]);
+    exec_child(argv, capture ? fds[1] : -1);
+  }
+  if (capture) {
+    close(fds[1]);
+    if (pid > 0) r.out = read_all(fds[0]);
+    close(fds[0]);
+  }
+  if (pid < 0) return r;
+  int status = 0;
+  rusage usage{};
+  wait4(pid, &status, 0, &usage);
+  r.wall = since(t0);
+  r.max_rss = 1024.0 * double(usage.ru_maxrss);  // kB on Linux
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+}  // namespace bench
