@@ -177,6 +177,11 @@ struct Model {
   ContactModel contact_model = ContactModel::DVI;
   DemSettings dem;
   int threads = 0;  // 0: OpenMP default
+  // Every this many steps the particles are sorted along a Morton curve, so
+  // neighbours sit near each other in memory (0: never); only from
+  // reorder_min_particles on, where the arrays outgrow the caches.
+  int reorder_interval = 64;
+  std::size_t reorder_min_particles = 4096;
 };
 
 }  // namespace ces

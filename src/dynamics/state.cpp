@@ -22,45 +22,34 @@ void Particles::push(std::uint64_t new_id, int shape_index, double size_scale,
 }
 
 namespace {
-template <class T>
-void swap_out(std::vector<T>& v, std::size_t i) {
-  v[i] = v.back();
-  v.pop_back();
+template <class F>
+void for_each_array(Particles& p, F&& f) {
+  std::apply([&](auto... member) { (f(p.*member), ...); }, kParticleArrays);
 }
 }  // namespace
 
 void Particles::swap_remove(std::size_t i) {
-  swap_out(id, i);
-  swap_out(shape, i);
-  swap_out(scale, i);
-  swap_out(material, i);
-  swap_out(position, i);
-  swap_out(orientation, i);
-  swap_out(velocity, i);
-  swap_out(angular_velocity, i);
-  swap_out(mass, i);
-  swap_out(inv_mass, i);
-  swap_out(inv_inertia, i);
-  swap_out(force, i);
-  swap_out(torque, i);
-  swap_out(charge, i);
+  for_each_array(*this, [i](auto& v) {
+    v[i] = v.back();
+    v.pop_back();
+  });
 }
 
 void Particles::reserve(std::size_t n) {
-  id.reserve(n);
-  shape.reserve(n);
-  scale.reserve(n);
-  material.reserve(n);
-  position.reserve(n);
-  orientation.reserve(n);
-  velocity.reserve(n);
-  angular_velocity.reserve(n);
-  mass.reserve(n);
-  inv_mass.reserve(n);
-  inv_inertia.reserve(n);
-  force.reserve(n);
-  torque.reserve(n);
-  charge.reserve(n);
+  for_each_array(*this, [n](auto& v) { v.reserve(n); });
+}
+
+void Particles::permute(const std::vector<std::uint32_t>& order, Particles& scratch) {
+  std::apply(
+      [&](auto... member) {
+        auto gather = [&](auto& from, auto& to) {
+          to.resize(order.size());
+          for (std::size_t j = 0; j < order.size(); ++j) to[j] = from[order[j]];
+          from.swap(to);
+        };
+        (gather(this->*member, scratch.*member), ...);
+      },
+      kParticleArrays);
 }
 
 }  // namespace ces

@@ -1,6 +1,7 @@
 // Mutable simulation state, laid out for the hot loops: one array per field.
 #pragma once
 #include <cstdint>
+#include <tuple>
 #include <vector>
 
 #include "common/math.hpp"
@@ -31,7 +32,17 @@ struct Particles {
             const Vec3& w);
   void swap_remove(std::size_t i);
   void reserve(std::size_t n);
+  // New index j takes old index order[j]. The arrays swap with `scratch`'s,
+  // so once both have grown, reordering allocates nothing.
+  void permute(const std::vector<std::uint32_t>& order, Particles& scratch);
 };
+
+// Every per-particle array, listed once for the operations on all of them.
+inline constexpr auto kParticleArrays = std::tuple{
+    &Particles::id,       &Particles::shape,    &Particles::scale,       &Particles::material,
+    &Particles::position, &Particles::orientation, &Particles::velocity, &Particles::angular_velocity,
+    &Particles::mass,     &Particles::inv_mass, &Particles::inv_inertia, &Particles::force,
+    &Particles::torque,   &Particles::charge};
 
 // Machine bodies: the Model's rigid bodies, in the same order.
 struct Bodies {

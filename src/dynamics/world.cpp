@@ -137,8 +137,12 @@ const StepStats& World::step() {
   for (Hook& hook : pre_) hook(*this);
   stats.seconds.hooks = seconds_since(t0);
 
+  t0 = Clock::now();
+  if (m.reorder_interval > 0 && stats_.step % std::uint64_t(m.reorder_interval) == 0)
+    reorder_in_space();
+  const double reorder_seconds = seconds_since(t0);
   collider_.collide(m, particles_, bodies_, contacts_);
-  stats.seconds.broadphase = collider_.broadphase_seconds();
+  stats.seconds.broadphase = reorder_seconds + collider_.broadphase_seconds();
   stats.seconds.narrowphase = collider_.narrowphase_seconds();
 
   t0 = Clock::now();
@@ -223,6 +227,48 @@ void World::integrate(double h) {
     bodies_.pose[k].position += h * v[np + k];
     bodies_.pose[k].orientation = advance(bodies_.pose[k].orientation, w[np + k], h);
   }
+}
+
+namespace {
+// Interleaves the low 21 bits of x with two zero bits after each.
+std::uint64_t spread_bits(std::uint64_t x) {
+  x &= 0x1fffff;
+  x = (x | x << 32) & 0x1f00000000ffffULL;
+  x = (x | x << 16) & 0x1f0000ff0000ffULL;
+  x = (x | x << 8) & 0x100f00f00f00f00fULL;
+  x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+  x = (x | x << 2) & 0x1249249249249249ULL;
+  return x;
+}
+}  // namespace
+
+void World::reorder_in_space() {
+  const Particles& p = particles_;
+  const std::size_t n = p.size();
+  if (n < std::max<std::size_t>(2, model_->reorder_min_particles)) return;
+  Vec3 lo = p.position[0];
+  double reach = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    lo = lo.cwiseMin(p.position[i]);
+    reach = std::max(reach, model_->shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i]);
+  }
+  // Cells of a particle diameter: a cell's particles touch each other.
+  const double cell = reach > 0.0 ? 2.0 * reach : 1.0;
+  sort_keys_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 q = (p.position[i] - lo) / cell;
+    auto axis = [&](int a) {  // (a non-finite coordinate goes to cell 0)
+      return spread_bits(std::uint64_t(q[a] >= 0.0 ? std::min(q[a], 2097151.0) : 0.0));
+    };
+    sort_keys_[i] = {axis(0) | axis(1) << 1 | axis(2) << 2, p.id[i], std::uint32_t(i)};
+  }
+  // By cell, then id: the order depends on the state only, not on threads.
+  std::sort(sort_keys_.begin(), sort_keys_.end(), [](const SortKey& a, const SortKey& b) {
+    return a.cell != b.cell ? a.cell < b.cell : a.id < b.id;
+  });
+  order_.resize(n);
+  for (std::size_t j = 0; j < n; ++j) order_[j] = sort_keys_[j].index;
+  particles_.permute(order_, reorder_scratch_);
 }
 
 void World::remember_impulses() {

@@ -85,6 +85,7 @@ class World {
   void dem_contacts(StepStats& stats);
   void integrate(double h);
   void remember_impulses();
+  void reorder_in_space();
 
   std::shared_ptr<const Model> model_;
   Particles particles_;
@@ -109,6 +110,13 @@ class World {
   std::vector<Vec3> impulse_scratch_;
   std::vector<std::size_t> order_scratch_;
   DemContacts dem_;
+  Particles reorder_scratch_;
+  std::vector<std::uint32_t> order_;
+  struct SortKey {
+    std::uint64_t cell, id;
+    std::uint32_t index;
+  };
+  std::vector<SortKey> sort_keys_;
   StepStats stats_;
 };
 
