@@ -1,0 +1,86 @@
+// Stress scenes (scenes/stress/, issue 6), each in a short version run by the
+// ces-sim binary, checked on its summary.json:
+//   - the run completes: no NaN or Inf (a non-finite state stops the run);
+//   - the particle mass balance is exact;
+//   - no particle through a wall: each scene's domain ends at its walls'
+//     faces, so a grain through one is lost as "left domain";
+//   - penetration below 5 % of the radius, or (cases marked "reported")
+//     above it only with the summary's warning;
+//   - in passive scenes, no energy gain above 1 % of the peak kinetic energy
+//     (the largest rise of the dynamics' energy, output/energy.hpp).
+// The full versions are the scene files as they stand (bench/README.md).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "support.hpp"
+
+namespace ces {
+namespace {
+
+using nlohmann::json;
+
+constexpr double kPenetrationBound = 0.05;  // of the radius
+constexpr double kEnergyGainBound = 0.01;   // of the peak kinetic energy
+
+struct StressCase {
+  const char* name;
+  const char* scene;        // in scenes/stress/
+  const char* short_sets;   // what makes the CI version short
+  bool penetration_reported;  // allowed above the bound if the summary warns
+  bool passive;             // energy balance applies
+};
+
+std::ostream& operator<<(std::ostream& o, const StressCase& c) { return o << c.name; }
+
+// Every number in the summary is finite (NaN/Inf would print as null).
+bool all_finite(const json& j) {
+  if (j.is_null()) return false;
+  if (j.is_number()) return std::isfinite(j.get<double>());
+  if (!j.is_structured()) return true;
+  for (const json& v : j)
+    if (!all_finite(v)) return false;
+  return true;
+}
+
+class Stress : public ::testing::TestWithParam<StressCase> {};
+
+TEST_P(Stress, MeetsThePassCriteria) {
+  const StressCase& c = GetParam();
+  const auto dir = test::fresh_dir(std::string("stress_") + c.name);
+  const test::Outcome r = test::ces_sim(std::string(CES_TEST_DIR) + "/../scenes/stress/" + c.scene +
+                                        " -o " + dir.string() + " --threads 1 --quiet " +
+                                        c.short_sets);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json s = json::parse(test::read_text(dir / "summary.json"));
+  EXPECT_TRUE(s["complete"].get<bool>()) << s["reason"];
+  EXPECT_TRUE(all_finite(s["solver"])) << s["solver"];
+  EXPECT_TRUE(s["balance"]["exact"].get<bool>());
+  EXPECT_GT(s["balance"]["fed"]["count"].get<int>(), 0);
+  EXPECT_EQ(s["balance"]["lost_by_reason"]["left domain"]["count"].get<int>(), 0)
+      << "particles through a wall";
+  const double penetration = s["solver"]["max_penetration_relative"].get<double>();
+  if (c.penetration_reported && penetration > kPenetrationBound)
+    EXPECT_NE(s["warnings"].dump().find("overlapped by up to"), std::string::npos);
+  else
+    EXPECT_LE(penetration, kPenetrationBound);
+  const json& e = s["energy"];
+  EXPECT_EQ(e["balance"].get<std::string>(), c.passive ? "passive" : "n/a") << e["reason"];
+  if (c.passive) EXPECT_LE(e["max_gain_relative"].get<double>(), kEnergyGainBound) << e;
+}
+
+const StressCase kPassing[] = {
+    {"friction_0", "friction.yaml", "--set feeds.pour.duration=50ms --set time.end=0.25s", false,
+     true},
+    {"friction_1", "friction.yaml",
+     "--set feeds.pour.duration=50ms --set time.end=0.25s --set materials.grain.friction=1 "
+     "--set materials.steel.friction=1",
+     false, true},
+    {"degenerate_geometry", "degenerate.yaml", "", false, true},
+};
+INSTANTIATE_TEST_SUITE_P(Scenes, Stress, ::testing::ValuesIn(kPassing),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+}  // namespace
+}  // namespace ces
