@@ -78,8 +78,38 @@ const StressCase kPassing[] = {
      "--set materials.steel.friction=1",
      false, true},
     {"degenerate_geometry", "degenerate.yaml", "", false, true},
+    {"bin_pile_20_layers", "bin_pile.yaml",
+     "--set 'feeds.fill.rate=6000 /s' --set feeds.fill.duration=0.2s --set time.end=0.3s", false,
+     true},
+    {"dense_flow", "dense_flow.yaml",
+     "--set 'feeds.pour.rate=20000 /s' --set feeds.pour.duration=0.05s --set time.end=0.25s",
+     false, true},
 };
 INSTANTIATE_TEST_SUITE_P(Scenes, Stress, ::testing::ValuesIn(kPassing),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+// Cases that fail their criteria at the scene's settings (docs/accuracy.md
+// has the measured figures; figures below on 2 cores, 2026-12-01). Disabled
+// rather than loosened: run them with --gtest_also_run_disabled_tests.
+//  - mass ratio sphere, 1 ms / 100 iterations: overlap 54 % of the radius,
+//    energy gain 104 % of the peak kinetic energy;
+//  - mass ratio plate: overlap 44 %, gain 10 %;
+//  - 0.1 mm grains on the drum at 130 rpm: overlap 5.9 radii (9.1 in the
+//    short version): into the drum;
+//  - 10 m/s streams: 380 of 400 grains through the plate, 375 through the mesh;
+//  - the reference machine at 10 ms: every pair within the |v| h envelope is
+//    a contact (880 000 for 593 grains), overlap 1000 radii (into the drum).
+const StressCase kFailing[] = {
+    {"mass_ratio_sphere", "mass_ratio_sphere.yaml", "", false, true},
+    {"mass_ratio_plate", "mass_ratio_plate.yaml", "--set time.end=0.3s", false, true},
+    {"drum_fine", "drum_fine.yaml", "--set feeds.top.duration=0.1s --set time.end=0.25s", false,
+     false},
+    {"impact_plate", "impact_plate.yaml", "", false, true},
+    {"impact_mesh", "impact_mesh.yaml", "", false, true},
+    {"step_10ms", "step_10ms.yaml", "--set time.end=0.1s --set feeds.nozzle.duration=0.05s", true,
+     false},
+};
+INSTANTIATE_TEST_SUITE_P(DISABLED_KnownFailures, Stress, ::testing::ValuesIn(kFailing),
                          [](const auto& info) { return std::string(info.param.name); });
 
 }  // namespace
