@@ -11,7 +11,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
-#include <stdexcept>
 
 #include "dynamics/world.hpp"
 #include "feed/feeder.hpp"
@@ -121,21 +120,6 @@ class Progress {
   double last_ = -1.0;
 };
 
-// A NaN or an infinity spreads through contacts to every neighbour and then
-// silently out of the domain: stop the run at the first one instead.
-void check_finite(const World& world) {
-  const Particles& p = world.particles();
-  for (std::size_t i = 0; i < p.size(); ++i)
-    if (!p.position[i].allFinite() || !p.velocity[i].allFinite() ||
-        !p.angular_velocity[i].allFinite())
-      throw std::runtime_error("non-finite state of particle " + std::to_string(p.id[i]));
-  const Bodies& b = world.bodies();
-  for (std::size_t k = 0; k < b.pose.size(); ++k)
-    if (!b.pose[k].position.allFinite() || !b.velocity[k].allFinite() ||
-        !b.angular_velocity[k].allFinite())
-      throw std::runtime_error("non-finite state of body '" + world.model().bodies[k].name + "'");
-}
-
 class Runner {
  public:
   Runner(const Simulation& sim, const RunOptions& options);
@@ -243,7 +227,6 @@ void Runner::step_to_end() {
       const auto t0 = Clock::now();
       const StepStats& s = world_.step();
       ++steps_done_;
-      check_finite(world_);
       observe(s, seconds_since(t0));
       progress.update(world_, sim_.end_time, seconds_since(start_));
     }
