@@ -1,6 +1,7 @@
 #include "output/energy.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace ces::output {
 namespace {
@@ -19,10 +20,15 @@ MechanicalEnergy mechanical_energy(const World& world) {
   const Particles& p = world.particles();
   MechanicalEnergy e;
   for (std::size_t i = 0; i < p.size(); ++i) {
-    e.kinetic += 0.5 * p.mass[i] * p.velocity[i].squaredNorm() +
-                 rotational(p.orientation[i], p.inv_inertia[i].cwiseInverse(),
-                            p.angular_velocity[i]);
-    e.potential -= p.mass[i] * m.gravity.dot(p.position[i]);
+    const double kinetic = 0.5 * p.mass[i] * p.velocity[i].squaredNorm() +
+                           rotational(p.orientation[i], p.inv_inertia[i].cwiseInverse(),
+                                      p.angular_velocity[i]);
+    const double potential = -p.mass[i] * m.gravity.dot(p.position[i]);
+    // A non-finite particle is about to be removed and reported as lost
+    // ("non-finite state"); counted here, it would turn every sum into NaN.
+    if (!std::isfinite(kinetic + potential)) continue;
+    e.kinetic += kinetic;
+    e.potential += potential;
   }
   const Bodies& b = world.bodies();
   for (std::size_t k = 0; k < m.bodies.size(); ++k) {

@@ -36,7 +36,8 @@ struct EnergyBalance {
   double max_gain_relative() const { return peak_kinetic > 0.0 ? max_gain / peak_kinetic : 0.0; }
 };
 
-// Kinetic and potential energy of the particles and dynamic bodies (J).
+// Kinetic and potential energy of the particles and dynamic bodies (J),
+// leaving out particles whose state is no longer finite.
 struct MechanicalEnergy {
   double kinetic = 0.0, potential = 0.0;
   double total() const { return kinetic + potential; }
