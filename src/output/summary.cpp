@@ -224,14 +224,16 @@ void print_indicators(const RunRecord& r, std::FILE* out) {
                  e.dissipated, e.max_gain, 100.0 * e.max_gain_relative());
 }
 
+// Three significant digits: enough for a warning.
+std::string g3(double v) {
+  char s[32];
+  std::snprintf(s, sizeof s, "%.3g", v);
+  return s;
+}
+
 }  // namespace
 
 std::string rayleigh_warning(double step, double rayleigh_time, std::uint64_t steps) {
-  auto g3 = [](double v) {
-    char s[32];
-    std::snprintf(s, sizeof s, "%.3g", v);
-    return std::string(s);
-  };
   return "DEM: the step (" + g3(step) + " s) is above 20 % of the Rayleigh time (" +
          g3(rayleigh_time) + " s) of the smallest particle" +
          (steps > 0 ? " in " + std::to_string(steps) + " steps" : std::string()) +
@@ -254,8 +256,8 @@ void add_warnings(RunRecord& r) {
     warn(rayleigh_warning(r.sim->model->step, s.rayleigh_time_min, s.steps_above_rayleigh_limit));
   const EnergyBalance& e = r.energy;
   if (e.not_passive.empty() && e.max_gain_relative() > kEnergyGainWarning)
-    warn("energy grew without a source by up to " + format_number(e.max_gain) + " J (" +
-         format_number(100.0 * e.max_gain_relative()) +
+    warn("energy grew without a source by up to " + g3(e.max_gain) + " J (" +
+         g3(100.0 * e.max_gain_relative()) +
          " % of the peak kinetic energy): consider a smaller time step or more iterations");
   for (const FeedRecord& f : r.feeds) {
     if (f.deferrals > 0)
