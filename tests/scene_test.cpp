@@ -517,6 +517,28 @@ TEST(SceneOverrides, CreateNestedSection) {
   EXPECT_EQ(sim.model->gravity, Vec3(0, -9.81, 0));
 }
 
+// The contact model and its elastic constants, as `study --vary
+// contact.model=dvi,dem` sets them: global constants, a material's own wins.
+TEST(SceneOverrides, ContactModelAndDemConstants) {
+  TempDir dir;
+  const std::string path = dir.write("s.yaml", std::string(kMinimal) + R"(
+materials:
+  soft: {density: 1000, youngs_modulus: 5 MPa}
+  hard: {density: 1000, poisson_ratio: 0.2}
+)");
+  EXPECT_EQ(load(path).model->contact_model, ContactModel::DVI);
+  const Simulation sim = load(path, sets({{"contact.model", "dem"},
+                                          {"contact.dem.youngs_modulus", "20 MPa"},
+                                          {"contact.dem.min_restitution", "0.1"}}));
+  const DemSettings& dem = sim.model->dem;
+  EXPECT_EQ(sim.model->contact_model, ContactModel::DEM);
+  EXPECT_EQ(dem.min_restitution, 0.1);
+  EXPECT_EQ(dem.elastic(0).youngs_modulus, 5e6);   // soft: its own
+  EXPECT_EQ(dem.elastic(0).poisson_ratio, 0.3);    // the default
+  EXPECT_EQ(dem.elastic(1).youngs_modulus, 20e6);  // hard: the scene's
+  EXPECT_EQ(dem.elastic(1).poisson_ratio, 0.2);
+}
+
 TEST(SceneOverrides, SeedAndThreadsOptions) {
   LoadOptions o;
   o.seed = 1234;
@@ -655,6 +677,12 @@ const Expected kExpectations[] = {
     {"bins_reversed.yaml", "bins_reversed.yaml", 6,
      "collectors[0].bins.to: to 0.1 m is not above from 0.4 m"},
     {"corrupt_mesh.yaml", "corrupt_mesh.yaml", 9, "bodies[0].geometry.mesh.file: cannot load mesh"},
+    {"dem_modulus_not_a_pressure.yaml", "dem_modulus_not_a_pressure.yaml", 5,
+     "contact.dem.youngs_modulus: '10 mm' is a length (m), expected a pressure (Pa)"},
+    {"dem_poisson_out_of_range.yaml", "dem_poisson_out_of_range.yaml", 8,
+     "materials.rubber.poisson_ratio: 0.5 is out of range, expected < 0.5"},
+    {"dem_unknown_model.yaml", "dem_unknown_model.yaml", 3,
+     "contact.model: got 'dme', expected one of dvi or dem (did you mean 'dem'?)"},
     {"duplicate_body.yaml", "duplicate_body.yaml", 10,
      "duplicate body name 'drum', first given at line 7"},
     {"duplicate_key.json", "duplicate_key.json", 6,

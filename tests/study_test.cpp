@@ -35,6 +35,34 @@ TEST(Study, CasesAreTheGridLastAxisFastest) {
   EXPECT_THROW(study::parse_axis("time.step=1ms,,2ms"), std::invalid_argument);
 }
 
+// Keys joined by ':' vary together: DVI and DEM each at their own steps.
+TEST(Study, ZippedKeysVaryTogether) {
+  const auto cases = study::make_cases({study::parse_axis("contact.model:time.step=dvi:1ms,dem:5us"),
+                                        study::parse_axis("seed=1,2")});
+  ASSERT_EQ(cases.size(), 4u);
+  EXPECT_EQ(cases[3].sets,
+            (study::Sets{{"contact.model", "dem"}, {"time.step", "5us"}, {"seed", "2"}}));
+  EXPECT_THROW(study::parse_axis("contact.model:time.step=dvi:1ms,dem"), std::invalid_argument);
+  EXPECT_THROW(study::parse_axis("contact.model:time.step=dvi:,dem:1ms"), std::invalid_argument);
+}
+
+// DVI and DEM on one plot: the reference is the finest DVI case even though
+// the DEM case has the smaller step; DEM draws its own line.
+TEST(Study, DviAndDemShareThePlotWithDviAsReference) {
+  const path dir = test::fresh_dir("study_dem");
+  const test::Outcome r = test::ces_sim(
+      "study " + kScene + " --vary contact.model:time.step=dvi:2ms,dvi:1ms,dem:0.5ms --jobs 2 -o " +
+      dir.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("reference: " + (dir / "case_1").string()), std::string::npos) << r.out;
+  const auto rows = read_csv(dir / "study.csv");
+  ASSERT_EQ(rows.size(), 4u);
+  EXPECT_EQ(rows[0][1], "contact.model");
+  EXPECT_EQ(rows[0][2], "time.step");
+  EXPECT_EQ(rows[3].back(), "dem");
+  EXPECT_NE(test::read_text(dir / "study.svg").find(">dem</text>"), std::string::npos);
+}
+
 // The reference is the finest case (0.5 ms) and its error against itself is
 // exactly 0; the landing error against the reference and against the closed
 // form (mean landing position, x = vx sqrt(2 H / g)) shrinks strictly with

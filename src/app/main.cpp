@@ -139,12 +139,14 @@ CLI::App* add_study_command(CLI::App& app, Args& args, StudyArgs& study) {
                "against the finest (study.csv, study.svg, a table)");
   cmd->add_option("scene", args.scene, "Scene file")->required();
   add_scene_options(*cmd, args);
-  cmd->add_option("--vary", study.vary, "An axis of the grid: key.path=v1,v2,...")
+  cmd->add_option("--vary", study.vary,
+                  "An axis of the grid: key.path=v1,v2,...; keys joined by ':' vary together "
+                  "(contact.model:time.step=dvi:1ms,dem:5us)")
       ->type_name("K=V,...")
       ->required();
   cmd->add_option("--reference", study.options.reference,
-                  "Output folder to measure against (default: the finest case: smallest "
-                  "time.step, then largest solver.max_iterations)");
+                  "Output folder to measure against (default: the finest case: DVI before DEM, "
+                  "smallest time.step, then largest solver.max_iterations)");
   cmd->add_option("-o,--out", study.options.out_dir, "Study folder (default: study)");
   cmd->add_option("--jobs", study.options.jobs, "Cases at once (default: the number of cores)")
       ->check(CLI::PositiveNumber);

@@ -39,6 +39,8 @@ void StepLog::record(const StepStats& s, double wall_seconds) {
   sum_.max_penetration_relative =
       std::max(sum_.max_penetration_relative, s.max_penetration_relative);
   sum_.max_joint_drift = std::max(sum_.max_joint_drift, s.joint_drift);
+  if (s.rayleigh_time > 0.0) sum_.rayleigh_time_min = std::min(sum_.rayleigh_time_min, s.rayleigh_time);
+  if (s.step_above_rayleigh_limit) ++sum_.steps_above_rayleigh_limit;
   sum_.max_particles = std::max(sum_.max_particles, s.particles);
   sum_.max_contacts = std::max(sum_.max_contacts, s.contacts);
   sum_.seconds += s.seconds;

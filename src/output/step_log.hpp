@@ -3,6 +3,7 @@
 #pragma once
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,10 @@ struct SolverSummary {
   double max_penetration = 0.0;    // m
   double max_penetration_relative = 0.0;
   double max_joint_drift = 0.0;  // m
+  // DEM: the smallest Rayleigh time met (s; inf: none, e.g. under DVI) and
+  // the steps longer than 20 % of that step's Rayleigh time.
+  double rayleigh_time_min = std::numeric_limits<double>::infinity();
+  std::uint64_t steps_above_rayleigh_limit = 0;
   std::size_t max_particles = 0;
   std::size_t max_contacts = 0;
   StageTimes seconds;  // summed over steps

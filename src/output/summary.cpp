@@ -1,5 +1,6 @@
 #include "output/summary.hpp"
 
+#include <cmath>
 #include <nlohmann/json.hpp>
 
 #include "output/format.hpp"
@@ -8,6 +9,10 @@ namespace ces::output {
 namespace {
 
 using Json = nlohmann::ordered_json;
+
+// A passive run that gains more than this fraction of its peak kinetic
+// energy is worth a warning: the numerics, not the physics, made it.
+constexpr double kEnergyGainWarning = 0.01;
 
 Json tally_json(const Tally& t) { return {{"count", t.count}, {"mass_kg", t.kg()}}; }
 
@@ -107,6 +112,32 @@ Json solver_json(const RunRecord& r) {
           {"contacts_max", s.max_contacts}};
 }
 
+// A value that only some runs have: "n/a" for the others.
+Json value_or_na(bool applies, double value) { return applies ? Json(value) : Json("n/a"); }
+
+Json contact_json(const RunRecord& r) {
+  const bool dem = r.sim->model->contact_model == ContactModel::DEM;
+  const double rayleigh = r.solver.rayleigh_time_min;
+  return {{"model", dem ? "dem" : "dvi"},
+          {"rayleigh_time_min_s", value_or_na(dem && std::isfinite(rayleigh), rayleigh)},
+          {"steps_above_rayleigh_limit", r.solver.steps_above_rayleigh_limit}};
+}
+
+Json energy_json(const RunRecord& r) {
+  const EnergyBalance& e = r.energy;
+  const bool passive = e.not_passive.empty();
+  return {{"balance", passive ? "passive" : "n/a"},
+          {"reason", e.not_passive},
+          {"initial_J", e.initial},
+          {"fed_J", e.fed},
+          {"removed_J", e.removed},
+          {"final_J", e.final},
+          {"dissipated_J", value_or_na(passive, e.dissipated)},
+          {"max_gain_J", value_or_na(passive, e.max_gain)},
+          {"peak_kinetic_J", e.peak_kinetic},
+          {"max_gain_relative", value_or_na(passive, e.max_gain_relative())}};
+}
+
 Json feeds_json(const RunRecord& r) {
   Json feeds = Json::array();
   for (const FeedRecord& f : r.feeds)
@@ -186,9 +217,30 @@ void print_indicators(const RunRecord& r, std::FILE* out) {
                s.iterations_mean, s.iterations_max, (unsigned long long)s.steps_at_cap,
                s.residual_median, s.residual_p95, s.max_penetration * 1e3,
                100.0 * s.max_penetration_relative);
+  const EnergyBalance& e = r.energy;
+  if (e.not_passive.empty())
+    std::fprintf(out, "energy: dissipated %.3g J, largest gain without a source %.3g J (%.2g %% of "
+                      "the peak kinetic energy)\n",
+                 e.dissipated, e.max_gain, 100.0 * e.max_gain_relative());
+}
+
+// Three significant digits: enough for a warning.
+std::string g3(double v) {
+  char s[32];
+  std::snprintf(s, sizeof s, "%.3g", v);
+  return s;
 }
 
 }  // namespace
+
+std::string rayleigh_warning(double step, double rayleigh_time, std::uint64_t steps) {
+  return "DEM: the step (" + g3(step) + " s) is above 20 % of the Rayleigh time (" +
+         g3(rayleigh_time) + " s) of the smallest particle" +
+         (steps > 0 ? " in " + std::to_string(steps) + " steps" : std::string()) +
+         ": explicit contact forces are unreliable (overlaps, energy gain, blow-up); take a "
+         "step below " +
+         g3(0.2 * rayleigh_time) + " s or a softer youngs_modulus";
+}
 
 void add_warnings(RunRecord& r) {
   auto warn = [&](std::string w) { r.warnings.push_back(std::move(w)); };
@@ -200,6 +252,13 @@ void add_warnings(RunRecord& r) {
     warn("particles overlapped by up to " +
          std::to_string(int(100.0 * s.max_penetration_relative)) +
          " % of their radius: consider a smaller time step or more iterations");
+  if (s.steps_above_rayleigh_limit > 0)
+    warn(rayleigh_warning(r.sim->model->step, s.rayleigh_time_min, s.steps_above_rayleigh_limit));
+  const EnergyBalance& e = r.energy;
+  if (e.not_passive.empty() && e.max_gain_relative() > kEnergyGainWarning)
+    warn("energy grew without a source by up to " + g3(e.max_gain) + " J (" +
+         g3(100.0 * e.max_gain_relative()) +
+         " % of the peak kinetic energy): consider a smaller time step or more iterations");
   for (const FeedRecord& f : r.feeds) {
     if (f.deferrals > 0)
       warn("feed '" + f.name + "': " + std::to_string(f.deferrals) +
@@ -233,6 +292,8 @@ std::string summary_json(const RunRecord& r) {
             {"balance", balance_json(r)},
             {"collectors", collectors_json(r)},
             {"solver", solver_json(r)},
+            {"contact", contact_json(r)},
+            {"energy", energy_json(r)},
             {"feeds", feeds_json(r)},
             {"spawn", spawn_json(r)},
             {"trajectory_frames", r.frames},

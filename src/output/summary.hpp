@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "output/collection.hpp"
+#include "output/energy.hpp"
 #include "output/step_log.hpp"
 #include "output/tables.hpp"
 #include "output/tally.hpp"
@@ -42,6 +43,7 @@ struct RunRecord {
   double wall = 0.0;  // s
   OwnTimes own;
   SolverSummary solver;
+  EnergyBalance energy;
   std::vector<FeedRecord> feeds;
   std::vector<Tally> fed, active;  // per Model material
   std::vector<int> materials;      // the reported ones (fed_materials)
@@ -53,6 +55,10 @@ struct RunRecord {
 // What a user should look at twice: solver caps, deep overlaps, deferred or
 // missing feed, lost particles. Appends to record.warnings.
 void add_warnings(RunRecord& record);
+
+// The DEM stability warning: `step` above 20 % of `rayleigh_time` (s), met
+// in `steps` steps (0: said as the run goes).
+std::string rayleigh_warning(double step, double rayleigh_time, std::uint64_t steps);
 
 std::string summary_json(const RunRecord& record);
 void print_report(const RunRecord& record, std::FILE* out);

@@ -147,6 +147,11 @@ class Compiler {
     model_->contact.envelope_fraction = contact.at("envelope").number();
     model_->contact.recovery_speed = contact.at("recovery_speed").number();
     model_->contact.restitution_threshold = contact.at("restitution_threshold").number();
+    model_->contact_model =
+        contact.at("model").string() == "dem" ? ContactModel::DEM : ContactModel::DVI;
+    const Node& dem = contact.at("dem");
+    model_->dem.defaults = {dem.at("youngs_modulus").number(), dem.at("poisson_ratio").number()};
+    model_->dem.min_restitution = dem.at("min_restitution").number();
     const Node* gravity = root_.find("gravity");
     model_->gravity = gravity ? vec3(*gravity) : Vec3::Zero();
   }
@@ -184,9 +189,18 @@ class Compiler {
         has_density_.push_back(density != nullptr);
         list.push_back({e.key, density ? density->number() : 0.0, m.at("friction").number(),
                         m.at("restitution").number()});
+        model_->dem.materials.push_back(elastic(m));
       }
     }
     model_->materials = MaterialTable(std::move(list), read_pairs());
+  }
+
+  // A material's DEM constants: its own, else contact.dem's (read before).
+  ElasticProperties elastic(const Node& m) const {
+    ElasticProperties e = model_->dem.defaults;
+    if (const Node* modulus = m.find("youngs_modulus")) e.youngs_modulus = modulus->number();
+    if (const Node* poisson = m.find("poisson_ratio")) e.poisson_ratio = poisson->number();
+    return e;
   }
 
   std::vector<MaterialPair> read_pairs() {

@@ -30,6 +30,7 @@ constexpr std::array kKinds = {
     Kind{"voltage", "a voltage", "V", "-35 kV", dim(1, 2, -3, -1)},
     Kind{"resistivity", "a resistivity", "ohm m", "1e12 ohm m", dim(1, 3, -3, -2)},
     Kind{"viscosity", "a dynamic viscosity", "Pa s", "1.81e-5 Pa s", dim(1, -1, -1)},
+    Kind{"pressure", "a pressure", "Pa", "100 MPa", dim(1, -1, -2)},
     Kind{"electric_field", "an electric field", "V/m", "4 kV/cm", dim(1, 1, -3, -1)},
     Kind{"current_density", "a current density", "A/m^2", "1e-4 A/m^2", dim(0, -2, 0, 1)},
 };

@@ -17,6 +17,7 @@
 #include "fields/stages.hpp"
 #include "output/collection.hpp"
 #include "output/distribution_svg.hpp"
+#include "output/energy.hpp"
 #include "output/field_picture.hpp"
 #include "output/files.hpp"
 #include "output/format.hpp"
@@ -144,6 +145,8 @@ class Runner {
   output::StepLog steps_;
   output::TrajectoryWriter trajectories_;
   output::OwnTimes own_;
+  output::EnergyLedger energy_;
+  bool rayleigh_warned_ = false;
   std::uint64_t steps_done_ = 0;
   bool complete_ = false;
   std::string reason_ = "running";
@@ -157,7 +160,10 @@ Runner::Runner(const Simulation& sim, const RunOptions& options)
       collection_(sim, output::shape_sizes(sim)),
       steps_(sim.output.steps_csv ? dir_ / "steps.csv" : fs::path(),
              sim.model->solver.max_iterations),
-      trajectories_(dir_, sim, output::shape_sizes(sim)) {
+      trajectories_(dir_, sim, output::shape_sizes(sim)),
+      energy_(sim, world_) {
+  // Hook order matters: the ledger measures after the feeds and on both
+  // sides of the collectors (output/energy.hpp).
   for (const Feed& f : sim.feeds) {
     feed::Feeder* feeder =
         feeders_.emplace_back(std::make_unique<feed::Feeder>(f, sim.seed, *sim.model)).get();
@@ -167,10 +173,13 @@ Runner::Runner(const Simulation& sim, const RunOptions& options)
       own_.feed += seconds_since(t0);
     });
   }
+  world_.add_pre_step([this](World& w) { energy_.after_feeds(w); });
   world_.add_post_step([this](World& w) {
+    energy_.before_collectors(w);
     const auto t0 = Clock::now();
     collection_(w);
     own_.collect += seconds_since(t0);
+    energy_.after_collectors(w);
   });
   add_physics();
 }
@@ -229,6 +238,11 @@ void Runner::step_to_end() {
 }
 
 void Runner::observe(const StepStats& s, double wall) {
+  if (s.step_above_rayleigh_limit && !rayleigh_warned_) {  // now, not only at the end
+    rayleigh_warned_ = true;
+    std::fprintf(stderr, "warning: t = %s s: %s\n", output::format_number(s.time).c_str(),
+                 output::rayleigh_warning(sim_.model->step, s.rayleigh_time, 0).c_str());
+  }
   const auto t0 = Clock::now();
   steps_.record(s, wall);
   trajectories_.observe(world_);
@@ -270,6 +284,7 @@ output::RunRecord Runner::record() const {
   r.wall = seconds_since(start_);
   r.own = own_;
   r.solver = steps_.summary();
+  r.energy = energy_.balance();
   r.frames = trajectories_.frames();
   r.materials = output::fed_materials(sim_);
   r.products = output::product_results(sim_, collection_, r.materials);

@@ -13,10 +13,12 @@
 #include <sstream>
 #include <stdexcept>
 #include <thread>
+#include <tuple>
 
 #include "output/compare.hpp"
 #include "output/files.hpp"
 #include "output/format.hpp"
+#include "dynamics/model.hpp"
 #include "scene/scene.hpp"
 
 namespace ces::study {
@@ -140,6 +142,7 @@ Row read_row(const Options& o, const Case& c, const fs::path& reference) {
   r.wall_s = j["wall_time_s"].value("total", 0.0);
   const auto& s = j["solver"];
   r.method = s.value("method", std::string());
+  r.contact_model = j.contains("contact") ? j["contact"].value("model", "dvi") : "dvi";
   r.residual_p95 = s.value("residual_p95_mps", 0.0);
   r.steps_at_cap = s.value("steps_at_iteration_cap", 0L);
   r.penetration_relative = s.value("max_penetration_relative", 0.0);
@@ -152,12 +155,17 @@ std::string fmt(double v) { return std::isinf(v) ? "inf" : output::format_number
 // ---------------------------------------------------------------- the plot
 
 // A line of the plot: the values of the axes other than step and iteration
-// cap (those move along a line), or the run's solver method.
+// cap (those move along a line), or the run's solver method. DEM runs use no
+// contact solver, so solver settings do not split their line.
 std::string series(const Row& r) {
+  const bool dem = r.contact_model == "dem";
   std::string label;
-  for (const auto& [k, v] : r.c.sets)
-    if (k != "time.step" && k != "solver.max_iterations") label += (label.empty() ? "" : " ") + v;
-  return label.empty() ? r.method : label;
+  for (const auto& [k, v] : r.c.sets) {
+    const bool solver_key = k.starts_with("solver.");
+    if (k == "time.step" || k == "solver.max_iterations" || (dem && solver_key)) continue;
+    label += (label.empty() ? "" : " ") + v;
+  }
+  return !label.empty() ? label : dem ? "dem" : r.method;
 }
 
 std::string xml_escaped(const std::string& s) {
@@ -248,19 +256,32 @@ Axis parse_axis(const std::string& spec) {
   if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
     throw std::invalid_argument("--vary " + spec + ": expected key.path=v1,v2,...");
   Axis a{spec.substr(0, eq), split(spec.substr(eq + 1), ',')};
-  for (const std::string& v : a.values)
-    if (v.empty()) throw std::invalid_argument("--vary " + spec + ": empty value");
+  const std::size_t keys = axis_keys(a).size();
+  for (const std::string& v : a.values) {
+    const std::vector<std::string> parts = split(v, ':');
+    if (std::any_of(parts.begin(), parts.end(), [](const auto& p) { return p.empty(); }))
+      throw std::invalid_argument("--vary " + spec + ": empty value");
+    if (parts.size() != keys)
+      throw std::invalid_argument("--vary " + spec + ": '" + v + "' has " +
+                                  std::to_string(parts.size()) + " values for " +
+                                  std::to_string(keys) + " keys");
+  }
   return a;
 }
+
+std::vector<std::string> axis_keys(const Axis& a) { return split(a.key, ':'); }
 
 std::vector<Case> make_cases(const std::vector<Axis>& axes) {
   std::vector<Case> cases(1);
   for (const Axis& axis : axes) {
+    const std::vector<std::string> keys = axis_keys(axis);
     std::vector<Case> next;
     for (const Case& c : cases)
       for (const std::string& v : axis.values) {
         next.push_back(c);
-        next.back().sets.emplace_back(axis.key, v);
+        const std::vector<std::string> parts = split(v, ':');
+        for (std::size_t k = 0; k < keys.size(); ++k)
+          next.back().sets.emplace_back(keys[k], parts[k]);
       }
     cases = std::move(next);
   }
@@ -280,15 +301,19 @@ std::vector<std::string> case_arguments(const Options& o, const Case& c) {
 }
 
 std::size_t finest_case(const Options& o, const std::vector<Case>& cases) {
+  using Finest = std::tuple<bool, double, int>;
   std::size_t best = 0;
-  std::pair<double, int> best_key{std::numeric_limits<double>::infinity(), 0};
+  Finest best_key{true, std::numeric_limits<double>::infinity(), 0};
   for (const Case& c : cases) {
     scene::LoadOptions lo;
     lo.overrides = o.base_sets;
     lo.overrides.insert(lo.overrides.end(), c.sets.begin(), c.sets.end());
     const Simulation sim = scene::load(o.scene, lo);
-    // Smallest step first, then the largest iteration cap.
-    const std::pair<double, int> key{sim.model->step, -sim.model->solver.max_iterations};
+    // DVI before DEM (the method under study; a DEM run at its tiny step is
+    // not the finer solution of the rigid problem), then the smallest step,
+    // then the largest iteration cap.
+    const Finest key{sim.model->contact_model == ContactModel::DEM, sim.model->step,
+                     -sim.model->solver.max_iterations};
     if (key < best_key) {
       best_key = key;
       best = c.index;
@@ -326,11 +351,12 @@ std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& row
       if (std::find(keys.begin(), keys.end(), k) == keys.end()) keys.push_back(k);
   std::sort(keys.begin(), keys.end());
   std::string text = "case";
-  for (const Axis& a : axes) text += "," + a.key;
+  for (const Axis& a : axes)
+    for (const std::string& k : axis_keys(a)) text += "," + k;
   text += ",complete,wall_time_s,w1_max_mm";
   for (const std::string& k : keys) text += ",w1_mm " + k;
   text += ",grade_error,recovery_error,balance_exact,solver_method,residual_p95_mps,"
-          "steps_at_iteration_cap,max_penetration_relative\n";
+          "steps_at_iteration_cap,max_penetration_relative,contact_model\n";
   for (const Row& r : rows) {
     std::vector<std::string> f{std::to_string(r.c.index)};
     for (const auto& [k, v] : r.c.sets) f.push_back(v);
@@ -341,7 +367,8 @@ std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& row
     }
     f.insert(f.end(), {fmt(r.errors.grade), fmt(r.errors.recovery),
                        r.errors.balance_exact ? "true" : "false", r.method, fmt(r.residual_p95),
-                       std::to_string(r.steps_at_cap), fmt(r.penetration_relative)});
+                       std::to_string(r.steps_at_cap), fmt(r.penetration_relative),
+                       r.contact_model});
     for (std::size_t i = 0; i < f.size(); ++i) text.append(i ? "," : "").append(f[i]);
     text += '\n';
   }
@@ -350,7 +377,8 @@ std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& row
 
 std::string study_table(const std::vector<Axis>& axes, const std::vector<Row>& rows) {
   std::vector<std::vector<std::string>> cells{{"case"}};
-  for (const Axis& a : axes) cells[0].push_back(a.key);
+  for (const Axis& a : axes)
+    for (const std::string& k : axis_keys(a)) cells[0].push_back(k);
   cells[0].insert(cells[0].end(), {"wall s", "W1 max mm", "grade err", "recovery err", "balance",
                                    "residual p95 m/s"});
   for (const Row& r : rows) {

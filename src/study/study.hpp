@@ -2,8 +2,8 @@
 //
 // A study runs one scene over every combination of --vary axes (each a list
 // of --set values), each case a normal run in DIR/case_K, and measures every
-// run against a reference: the finest case (smallest time.step, then largest
-// solver.max_iterations) or a given output folder. Errors are what users
+// run against a reference: the finest case (DVI before DEM, smallest
+// time.step, then largest solver.max_iterations) or a given output folder. Errors are what users
 // care about: the landing distribution per "material at collector"
 // (Wasserstein-1, mm), products' grade and recovery (max abs difference) and
 // the particle mass balance. Results: DIR/study.csv, DIR/study.svg (error vs
@@ -26,12 +26,17 @@ namespace ces::study {
 
 using Sets = std::vector<std::pair<std::string, std::string>>;
 
+// One --vary. Keys joined by ':' vary together, each value giving one per
+// key: "contact.model:time.step=dvi:1ms,dem:5us" is two cases, not four.
+// That is how DVI and DEM share a plot: DEM needs a step a hundred times
+// smaller, and a grid over both would run each model at the other's steps.
 struct Axis {
   std::string key;
   std::vector<std::string> values;
 };
-// "key.path=v1,v2,..."; throws std::invalid_argument.
+// "key.path=v1,v2,..." or "k1:k2=a1:a2,b1:b2"; throws std::invalid_argument.
 Axis parse_axis(const std::string& spec);
+std::vector<std::string> axis_keys(const Axis& a);
 
 struct Case {
   std::size_t index = 0;
@@ -75,6 +80,7 @@ struct Row {
   bool complete = false;
   double wall_s = 0.0;
   std::string method;
+  std::string contact_model = "dvi";
   double residual_p95 = 0.0;
   long steps_at_cap = 0;
   double penetration_relative = 0.0;

@@ -1,0 +1,82 @@
+#include "output/energy.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace ces::output {
+namespace {
+
+// Rotational kinetic energy of a body with principal inertia `inertia`
+// (body frame) turning at world angular velocity w.
+double rotational(const Quat& q, const Vec3& inertia, const Vec3& w) {
+  const Vec3 wb = q.conjugate() * w;
+  return 0.5 * wb.dot(inertia.cwiseProduct(wb));
+}
+
+}  // namespace
+
+MechanicalEnergy mechanical_energy(const World& world) {
+  const Model& m = world.model();
+  const Particles& p = world.particles();
+  MechanicalEnergy e;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const double kinetic = 0.5 * p.mass[i] * p.velocity[i].squaredNorm() +
+                           rotational(p.orientation[i], p.inv_inertia[i].cwiseInverse(),
+                                      p.angular_velocity[i]);
+    const double potential = -p.mass[i] * m.gravity.dot(p.position[i]);
+    // A non-finite particle is about to be removed and reported as lost
+    // ("non-finite state"); counted here, it would turn every sum into NaN.
+    if (!std::isfinite(kinetic + potential)) continue;
+    e.kinetic += kinetic;
+    e.potential += potential;
+  }
+  const Bodies& b = world.bodies();
+  for (std::size_t k = 0; k < m.bodies.size(); ++k) {
+    const RigidBody& body = m.bodies[k];
+    if (body.kind != BodyKind::Dynamic) continue;
+    e.kinetic += 0.5 * body.mass * b.velocity[k].squaredNorm() +
+                 rotational(b.pose[k].orientation, body.inertia, b.angular_velocity[k]);
+    e.potential -= body.mass * m.gravity.dot(b.pose[k].position);
+  }
+  return e;
+}
+
+std::string why_not_passive(const Simulation& sim) {
+  if (sim.electrostatics) return "electric forces do work";
+  if (!sim.model->motors.empty()) return "motors do work";
+  for (const RigidBody& b : sim.model->bodies) {
+    const PrescribedMotion& m = b.motion;
+    if (b.kind == BodyKind::Kinematic && (m.angular_speed != 0.0 || !m.linear_velocity.isZero()))
+      return "kinematic body '" + b.name + "' moves: the work of its contacts is not tracked";
+  }
+  return "";
+}
+
+EnergyLedger::EnergyLedger(const Simulation& sim, const World& world) {
+  balance_.not_passive = why_not_passive(sim);
+  balance_.initial = balance_.final = last_ = mechanical_energy(world).total();
+}
+
+void EnergyLedger::after_feeds(const World& world) {
+  const double e = mechanical_energy(world).total();
+  balance_.fed += e - last_;
+  last_ = e;
+}
+
+void EnergyLedger::before_collectors(const World& world) {
+  const MechanicalEnergy e = mechanical_energy(world);
+  dynamics_ += e.total() - last_;
+  lowest_ = std::min(lowest_, dynamics_);
+  balance_.max_gain = std::max(balance_.max_gain, dynamics_ - lowest_);
+  balance_.peak_kinetic = std::max(balance_.peak_kinetic, e.kinetic);
+  last_ = e.total();
+}
+
+void EnergyLedger::after_collectors(const World& world) {
+  const double e = mechanical_energy(world).total();
+  balance_.removed += last_ - e;
+  last_ = balance_.final = e;
+  balance_.dissipated = balance_.initial + balance_.fed - balance_.removed - balance_.final;
+}
+
+}  // namespace ces::output

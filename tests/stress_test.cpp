@@ -1,0 +1,122 @@
+// Stress scenes (scenes/stress/, issue 6), each in a short version run by the
+// ces-sim binary, checked on its summary.json:
+//   - the run completes with no NaN or Inf (the collectors remove a
+//     particle whose state turns non-finite, as lost: "non-finite state");
+//   - the particle mass balance is exact;
+//   - no particle through a wall: each scene's domain ends at its walls'
+//     faces, so a grain through one is lost as "left domain";
+//   - penetration below 5 % of the radius, or (cases marked "reported")
+//     above it only with the summary's warning;
+//   - in passive scenes, no energy gain above 1 % of the peak kinetic energy
+//     (the largest rise of the dynamics' energy, output/energy.hpp).
+// The full versions are the scene files as they stand (bench/README.md).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "support.hpp"
+
+namespace ces {
+namespace {
+
+using nlohmann::json;
+
+constexpr double kPenetrationBound = 0.05;  // of the radius
+constexpr double kEnergyGainBound = 0.01;   // of the peak kinetic energy
+
+struct StressCase {
+  const char* name;
+  const char* scene;        // in scenes/stress/
+  const char* short_sets;   // what makes the CI version short
+  bool penetration_reported;  // allowed above the bound if the summary warns
+  bool passive;             // energy balance applies
+};
+
+std::ostream& operator<<(std::ostream& o, const StressCase& c) { return o << c.name; }
+
+// Every number in the summary is finite (NaN/Inf would print as null).
+bool all_finite(const json& j) {
+  if (j.is_null()) return false;
+  if (j.is_number()) return std::isfinite(j.get<double>());
+  if (!j.is_structured()) return true;
+  for (const json& v : j)
+    if (!all_finite(v)) return false;
+  return true;
+}
+
+class Stress : public ::testing::TestWithParam<StressCase> {};
+
+TEST_P(Stress, MeetsThePassCriteria) {
+  const StressCase& c = GetParam();
+  const auto dir = test::fresh_dir(std::string("stress_") + c.name);
+  const test::Outcome r = test::ces_sim(std::string(CES_TEST_DIR) + "/../scenes/stress/" + c.scene +
+                                        " -o " + dir.string() + " --threads 1 --quiet " +
+                                        c.short_sets);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json s = json::parse(test::read_text(dir / "summary.json"));
+  EXPECT_TRUE(s["complete"].get<bool>()) << s["reason"];
+  EXPECT_TRUE(all_finite(s["solver"])) << s["solver"];
+  EXPECT_TRUE(s["balance"]["exact"].get<bool>());
+  EXPECT_GT(s["balance"]["fed"]["count"].get<int>(), 0);
+  const json& lost = s["balance"]["lost_by_reason"];
+  EXPECT_EQ(lost["non-finite state"]["count"].get<int>(), 0) << "NaN or Inf";
+  EXPECT_EQ(lost["left domain"]["count"].get<int>(), 0) << "particles through a wall";
+  const double penetration = s["solver"]["max_penetration_relative"].get<double>();
+  if (c.penetration_reported && penetration > kPenetrationBound) {
+    EXPECT_NE(s["warnings"].dump().find("overlapped by up to"), std::string::npos);
+  } else {
+    EXPECT_LE(penetration, kPenetrationBound);
+  }
+  const json& e = s["energy"];
+  EXPECT_EQ(e["balance"].get<std::string>(), c.passive ? "passive" : "n/a") << e["reason"];
+  if (c.passive) {
+    EXPECT_LE(e["max_gain_relative"].get<double>(), kEnergyGainBound) << e;
+  }
+}
+
+const StressCase kPassing[] = {
+    {"friction_0", "friction.yaml", "--set feeds.pour.duration=50ms --set time.end=0.25s", false,
+     true},
+    {"friction_1", "friction.yaml",
+     "--set feeds.pour.duration=50ms --set time.end=0.25s --set materials.grain.friction=1 "
+     "--set materials.steel.friction=1",
+     false, true},
+    {"degenerate_geometry", "degenerate.yaml", "", false, true},
+    {"bin_pile_20_layers", "bin_pile.yaml",
+     "--set 'feeds.fill.rate=6000 /s' --set feeds.fill.duration=0.2s --set time.end=0.3s", false,
+     true},
+    {"dense_flow", "dense_flow.yaml",
+     "--set 'feeds.pour.rate=20000 /s' --set feeds.pour.duration=0.05s --set time.end=0.25s",
+     false, true},
+};
+INSTANTIATE_TEST_SUITE_P(Scenes, Stress, ::testing::ValuesIn(kPassing),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+// Cases that fail their criteria at the scene's settings (docs/accuracy.md
+// has the measured figures; figures below on 2 cores, 2026-12-01). Disabled
+// rather than loosened: run them with --gtest_also_run_disabled_tests.
+//  - mass ratio sphere, 1 ms / 100 iterations: overlap 54 % of the radius,
+//    energy gain 104 % of the peak kinetic energy;
+//  - mass ratio plate: overlap 44 %, gain 10 %;
+//  - 0.1 mm grains on the drum at 130 rpm: overlap 5.9 radii (9.1 in the
+//    short version): into the drum;
+//  - 10 m/s streams: 372 of 400 grains through the plate, 372 through the
+//    mesh (a lone grain rebounds; at a 0.1 ms step 0 and 1 get through);
+//  - the reference machine at 10 ms: every pair within the |v| h envelope is
+//    a contact (880 000 for 593 grains), overlap 1000 radii (into the drum).
+const StressCase kFailing[] = {
+    {"mass_ratio_sphere", "mass_ratio_sphere.yaml", "", false, true},
+    {"mass_ratio_plate", "mass_ratio_plate.yaml", "--set time.end=0.3s", false, true},
+    {"drum_fine", "drum_fine.yaml", "--set feeds.top.duration=0.1s --set time.end=0.25s", false,
+     false},
+    {"impact_plate", "impact_plate.yaml", "", false, true},
+    {"impact_mesh", "impact_mesh.yaml", "", false, true},
+    {"step_10ms", "step_10ms.yaml", "--set time.end=0.1s --set feeds.nozzle.duration=0.05s", true,
+     false},
+};
+INSTANTIATE_TEST_SUITE_P(DISABLED_KnownFailures, Stress, ::testing::ValuesIn(kFailing),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+}  // namespace
+}  // namespace ces
