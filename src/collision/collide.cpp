@@ -105,6 +105,13 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   const RigidBody& rb = model.bodies[std::size_t(body)];
   const Pose& pose = bodies.pose[std::size_t(body)];
   const geo::Aabb bounds = geo::local_bounds(rb.shape);
+  const Vec3& v_body = bodies.velocity[std::size_t(body)];
+  const Vec3& w_body = bodies.angular_velocity[std::size_t(body)];
+  // How far any point of the body moves this step, for the cull. (A plane's
+  // bounds are infinite: only a turning body adds the swing term.)
+  const double w_norm = w_body.norm();
+  const double swing = w_norm > 0.0 ? w_norm * 0.5 * (bounds.max - bounds.min).norm() : 0.0;
+  const double body_travel = (v_body.norm() + swing) * model.step;
   const int solver_index = int(p.size()) + body;
   const auto& mat = model.materials;
   run_chunked(p.size(), chunks_, out, [&](std::size_t begin, std::size_t end, Contacts& part) {
@@ -113,19 +120,23 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
     for (std::size_t i = begin; i < end; ++i) {
       // Cull by the particle's bounding sphere in the body frame.
       const Vec3 local_centre = pose.inverse_apply(p.position[i]);
-      if (!bounds.inflated(reach_[i]).overlaps({local_centre, local_centre})) continue;
+      if (!bounds.inflated(reach_[i] + body_travel).overlaps({local_centre, local_centre})) continue;
       const ParticleShape& s = model.shapes[std::size_t(p.shape[i])];
       const double mu = mat.friction(rb.material, p.material[i]);
       const double e = mat.restitution(rb.material, p.material[i]);
       for (std::size_t k = 0; k < s.centers.size(); ++k) {
         const Vec3 c = p.position[i] + p.orientation[i] * (p.scale[i] * s.centers[k]);
         const double r = p.scale[i] * s.radii[k];
+        // The body's surface may close in too (a splitter on its slide), by
+        // its speed along the normal; a drum turning in place adds nothing.
+        const Vec3 v_surface = v_body + w_body.cross(c - pose.position);
+        const double surface_travel = v_surface.norm() * model.step;
         hits.clear();
-        geo::query(rb.shape, pose.inverse_apply(c), r + envelope_[i], hits);
+        geo::query(rb.shape, pose.inverse_apply(c), r + envelope_[i] + surface_travel, hits);
         for (const geo::SurfaceHit& hit : hits) {
           const double gap = hit.distance - r;
-          if (gap >= envelope_[i]) continue;
           const Vec3 n = pose.orientation * hit.normal;
+          if (gap >= envelope_[i] + std::max(0.0, v_surface.dot(n)) * model.step) continue;
           const ContactKey key{kBodyTag | std::uint64_t(body), p.id[i], hit.feature,
                                std::uint32_t(k)};
           part.push(solver_index, int(i), n, c - n * (r + 0.5 * gap), gap, r, mu, e, key);
