@@ -266,7 +266,7 @@ TEST(SeparatorScene, FieldCsvIsTheFieldModel) {
 
 struct Landing {
   std::string material, product;
-  double along = 0.0, mass = 0.0;
+  double along = 0.0, mass = 0.0, charge = 0.0;
 };
 
 std::vector<Landing> landings(const fs::path& dir) {
@@ -278,7 +278,8 @@ std::vector<Landing> landings(const fs::path& dir) {
   std::vector<Landing> out;
   for (std::size_t k = 1; k < rows.size(); ++k)
     out.push_back({rows[k][col("material")], rows[k][col("product")],
-                   std::stod(rows[k][col("along_m")]), std::stod(rows[k][col("mass_kg")])});
+                   std::stod(rows[k][col("along_m")]), std::stod(rows[k][col("mass_kg")]),
+                   std::stod(rows[k][col("charge_c")])});
   return out;
 }
 
@@ -303,14 +304,22 @@ std::vector<double> positions(const std::vector<Landing>& all, const std::string
 }
 
 // 0.1 s of the reference scene's feed (about 570 particles), run until
-// nearly all of it has landed. Thresholds: at least 90 % of the copper in
-// the conductor product, whose copper grade is at least 90 %; at most 3 % of
-// the FR-4 in it. Where the FR-4 goes is this model's finding, not a
-// threshold: the sphere-law image force cannot hold it on the lower front of
-// the drum (README), so it leaves there and lands between the splitters.
+// nearly all of it has landed, the FR-4 flakes after riding 3/4 of a turn
+// to the brush (1.6 s). Thresholds (measured at seed 1 in brackets):
+//  - copper: at least 90 % of it in the conductor product (99.5 %), whose
+//    copper grade is at least 90 % (92.2 %); at most 5 % of the FR-4 there
+//    (3.7 %: large FR-4 that bounced off the drum on landing and passed the
+//    corona zone uncharged, thrown with the copper);
+//  - FR-4 into the near (nonconductor) product: at least 40 % of it (49.7 %)
+//    and no copper, at least 90 % of that brushed off the drum (charge 0:
+//    95 %). Half the FR-4 mass is flakes, pinned by the face law (stages.hpp)
+//    and brushed off: 98 % of them reach the near product. The other half
+//    is grains, whose sphere-law image force (at most 1.06 m g at 0.5 mm)
+//    cannot hold them under the drum, where 1.36 m g pulls them off: they
+//    slide off the lower front into the middling (README).
 TEST(SeparatorScene, ShortFeedSeparatesCopperFromFr4) {
   const Simulation sim =
-      load(kScenes + "ces_pcb.yaml", {{"feeds.nozzle.duration", "0.1 s"}, {"time.end", "1 s"}});
+      load(kScenes + "ces_pcb.yaml", {{"feeds.nozzle.duration", "0.1 s"}, {"time.end", "1.6 s"}});
   const fs::path dir = run_scene(sim, "short_feed");
   const auto summary = nlohmann::json::parse(read_text(dir / "summary.json"));
   EXPECT_TRUE(summary["balance"]["exact"].get<bool>());
@@ -322,7 +331,14 @@ TEST(SeparatorScene, ShortFeedSeparatesCopperFromFr4) {
   const double cu_far = mass(all, "copper", "conductor"), fr4_far = mass(all, "fr4", "conductor");
   EXPECT_GE(cu_far / copper, 0.9);
   EXPECT_GE(cu_far / (cu_far + fr4_far), 0.9);
-  EXPECT_LE(fr4_far / fr4, 0.03);
+  EXPECT_LE(fr4_far / fr4, 0.05);
+  const double fr4_near = mass(all, "fr4", "nonconductor");
+  EXPECT_GE(fr4_near / fr4, 0.4);
+  EXPECT_EQ(mass(all, "copper", "nonconductor"), 0.0);
+  double brushed = 0.0;
+  for (const Landing& l : all)
+    if (l.material == "fr4" && l.product == "nonconductor" && l.charge == 0.0) brushed += l.mass;
+  EXPECT_GE(brushed / fr4_near, 0.9);
 }
 
 // The feed-rate scenes (the seed's Figure 10) on small feeds: 0.05 s at 5,
@@ -336,7 +352,12 @@ TEST(SeparatorScene, ShortFeedSeparatesCopperFromFr4) {
 // g/s. At 1 ms steps they did widen (17.8, 23.9, 34.4 mm), but with the
 // solver's error: the worst overlap grew from 2.9 to 11 particle radii with
 // the feed rate. On small feeds the few copper particles (11 to 44) make any
-// spread a coin toss.
+// spread a coin toss. Nor does it widen with the size, shape and nozzle
+// variance taken out (copper only, 1 mm spheres, 10 x 10 or 10 x 4 mm slot,
+// no velocity spread, 0.05 s): copper standard deviations 1.3-2.1, 1.8-2.6
+// and 2.0-2.3 mm at 5, 20 and 40 g/s over seeds, monotone in two runs of
+// five (README, Feed rate). Particles riding the drum move together and
+// meet slowly; an asserted trend would pass or fail by the seed.
 TEST(SeparatorScene, FeedRatesSeparateAlike) {
   for (const char* rate : {"5", "20", "40"}) {
     SCOPED_TRACE(std::string(rate) + " g/s");

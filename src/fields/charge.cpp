@@ -63,6 +63,12 @@ double image_force(double charge, double radius, double eps_r_medium) {
   return charge * charge / (4.0 * kPi * kEps0 * eps_r_medium * separation * separation);
 }
 
+double flat_image_force(double charge, double face_area, double eps_r_medium, double gap) {
+  // (2g)² + A/2π: at g = 0, 4π ε0 εr A/2π = 2 ε0 εr A.
+  const double spread = 4.0 * gap * gap + face_area / (2.0 * kPi);
+  return charge * charge / (4.0 * kPi * kEps0 * eps_r_medium * spread);
+}
+
 double reynolds_number(double speed, double radius, const Air& air) {
   return air.density * speed * 2.0 * radius / air.viscosity;
 }

@@ -73,8 +73,24 @@ double decay_step(double charge, double tau, double dt);
 
 // Image (pinning) force magnitude of a charged sphere on the drum, toward
 // the drum: F_im = Q² / (4π ε0 εr (2r)²) (PHYSICS §3), εr of the MEDIUM
-// (air), not of the particle.
+// (air), not of the particle. Its charge is at the centre, r from the drum;
+// for a sphere a gap g off the drum pass r + g (charge and image 2(r + g)
+// apart).
 double image_force(double charge, double radius, double eps_r_medium);
+
+// Image (pinning) force magnitude of a flat insulating flake lying on the
+// drum with its charge Q spread over a face of area A, toward the drum:
+// F_im = Q² / (2 ε0 εr A) (PHYSICS §3, marked inference there), εr of the
+// MEDIUM. It is the pull between a sheet of charge σ = Q/A and its image
+// across the thin air gap of the contact, σ² A / (2 ε0): the parallel-plate
+// limit, good when the flake is much wider than thick (its charge's field
+// lines then nearly all end on the drum under it, whichever face of the
+// flake the charge sits on, so it holds for ions on the top face too).
+// Lifted off by `gap` (a hop, or a flake riding just above the drum), the
+// force is bridged to that of a point charge and its image 2·gap apart:
+// F = Q² / (4π ε0 εr ((2 gap)² + A/(2π))) (inference: exact in both
+// limits, gap = 0 and gap >> √A; 80 % of the contact value at gap = 0.1 √A).
+double flat_image_force(double charge, double face_area, double eps_r_medium, double gap = 0.0);
 
 // ----------------------------------------------------------------- drag --
 

@@ -1,8 +1,10 @@
 #include "fields/stages.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -33,23 +35,110 @@ std::vector<double> unit_radii(const Model& model) {
   return radii;
 }
 
-// Largest gap at which contact k still counts as touching its body. On a
-// turning body a carried particle starts each step off the surface by the
-// chord sag ρ (ω h)² / 2 of its last step (semi-implicit Euler moves it
-// along a tangent; the solve pulls it back): 3 µm at 60 rpm and 1 ms, 14 µm
-// at 128 rpm. Twice that is allowed, on top of the fraction of r.
+// Largest gap at which contact k (body first, particle i second) still
+// counts as touching its body. On a turning body a carried particle starts
+// each step off the surface by the chord sag ρ (ω h)² / 2 of its last step
+// (semi-implicit Euler moves it along a tangent; the solve pulls it back):
+// 3 µm at 60 rpm and 1 ms, 14 µm at 128 rpm. Twice that is allowed, on top
+// of the fraction of r. A particle SLIDING on the body rides higher: the
+// velocity-level cone complementarity (Anitescu–Tasora relaxation, DESIGN
+// §4) gives a sliding contact the normal velocity μ |v_t|, so it starts each
+// step μ |v_t| h off the surface (50 µm for an FR-4 flake landing on the
+// drum 0.2 m/s faster than its surface, at μ = 0.5 and 0.5 ms: 17 % of its
+// spheres' radius), and a sliding conductor is still in contact with the
+// grounded drum. Twice that is allowed too; v_t is the slip at the contact
+// point at the start of the step. (The image force does not need a touch:
+// it acts at the distance of the closest listed drum contact.)
 double touch_tolerance(const Contacts& c, std::size_t k, const Bodies& bodies, std::size_t body,
-                       double h) {
+                       const Particles& p, std::size_t i, double h) {
   const Vec3& w = bodies.angular_velocity[body];
   const double r = c.radius[k];
   const Vec3 arm = c.point[k] - bodies.pose[body].position;
   const double rho = w.squaredNorm() > 0.0 ? arm.cross(w.normalized()).norm() : 0.0;
-  return kTouchFraction * r + w.squaredNorm() * (rho + r) * h * h;
+  const Vec3 surface = bodies.velocity[body] + w.cross(arm);
+  const Vec3 particle =
+      p.velocity[i] + p.angular_velocity[i].cross(c.point[k] - p.position[i]);
+  const Vec3 slip = particle - surface;
+  const Vec3& n = c.normal[k];
+  const double v_t = (slip - slip.dot(n) * n).norm();
+  return kTouchFraction * r + w.squaredNorm() * (rho + r) * h * h + 2.0 * c.friction[k] * v_t * h;
+}
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Flat shapes (ShapeElectrics): at least this many thicknesses wide both
+// ways across their thinnest principal axis. The built-in flake of aspect
+// 0.2 is 5; at 3 the parallel-plate picture of the flat image force (field
+// lines from the flake's charge end on the drum under it) still holds
+// roughly, below it a grain is better described by the sphere law.
+constexpr double kFlatWidth = 3.0;
+// Cells per side of the grid the footprint area is counted on: the area of
+// a disc comes out within 0.1 %.
+constexpr int kFootprintCells = 512;
+
+// Area of the union of discs (centre (u, v), radius r) by counting the
+// centres of a grid's cells over their bounding box.
+double union_area(const std::vector<std::array<double, 3>>& discs) {
+  double u0 = kInf, u1 = -kInf, v0 = kInf, v1 = -kInf;
+  for (const auto& [u, v, r] : discs) {
+    u0 = std::min(u0, u - r), u1 = std::max(u1, u + r);
+    v0 = std::min(v0, v - r), v1 = std::max(v1, v + r);
+  }
+  const int n = kFootprintCells;
+  const double du = (u1 - u0) / n, dv = (v1 - v0) / n;
+  std::vector<std::uint8_t> covered(std::size_t(n) * std::size_t(n), 0);
+  for (const auto& [u, v, r] : discs) {
+    const int i0 = std::max(0, int((u - r - u0) / du)), i1 = std::min(n - 1, int((u + r - u0) / du));
+    const int j0 = std::max(0, int((v - r - v0) / dv)), j1 = std::min(n - 1, int((v + r - v0) / dv));
+    for (int i = i0; i <= i1; ++i) {
+      const double x = u0 + (i + 0.5) * du - u;
+      for (int j = j0; j <= j1; ++j) {
+        const double y = v0 + (j + 0.5) * dv - v;
+        if (x * x + y * y <= r * r) covered[std::size_t(i) * std::size_t(n) + std::size_t(j)] = 1;
+      }
+    }
+  }
+  return double(std::count(covered.begin(), covered.end(), 1)) * du * dv;
 }
 
 double particle_radius(const Particles& p, std::size_t i, const std::vector<double>& unit) {
   return p.scale[i] * unit[std::size_t(p.shape[i])];
 }
+
+}  // namespace
+
+ShapeElectrics shape_electrics(const ParticleShape& shape) {
+  ShapeElectrics e;
+  e.radius = std::cbrt(3.0 * shape.volume / (4.0 * kPi));
+  e.charging_radius = e.radius;
+  // Extent along each principal axis.
+  Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);
+  for (std::size_t s = 0; s < shape.centers.size(); ++s) {
+    const Vec3 r = Vec3::Constant(shape.radii[s]);
+    lo = lo.cwiseMin(shape.centers[s] - r), hi = hi.cwiseMax(shape.centers[s] + r);
+  }
+  const Vec3 extent = hi - lo;
+  int k = 0;  // the thinnest axis
+  for (int a = 1; a < 3; ++a)
+    if (extent[a] < extent[k]) k = a;
+  const int i = (k + 1) % 3, j = (k + 2) % 3;
+  const double thickness = extent[k];
+  const double width = std::min(extent[i], extent[j]);
+  if (width < kFlatWidth * thickness) return e;
+  // The face: the shadow of the spheres on the plane across the thin axis.
+  std::vector<std::array<double, 3>> discs;
+  for (std::size_t s = 0; s < shape.centers.size(); ++s)
+    discs.push_back({shape.centers[s][i], shape.centers[s][j], shape.radii[s]});
+  e.face_area = union_area(discs);
+  const double plate = shape.volume / e.face_area;  // thickness of the same volume
+  const double surface = 2.0 * e.face_area + 2.0 * std::sqrt(kPi * e.face_area) * plate;
+  e.charging_radius = std::sqrt(surface / (4.0 * kPi));
+  e.face_normal = Vec3::Unit(k);
+  e.flat_cos = std::sqrt(1.0 - std::min(1.0, (thickness / width) * (thickness / width)));
+  return e;
+}
+
+namespace {
 
 // ------------------------------------------------------------------ drag --
 
@@ -142,14 +231,18 @@ struct Site {
   Vec3 field;               // E there; zero beyond the drum width
   bool active;              // |z| <= half-width
   const Vec3* drum_normal;  // out of the drum at the touching contact, or null
+  const Vec3* near_normal;  // out of the drum at the closest listed contact, or null
+  double near_gap;          // its gap (>= 0)
   bool brush;               // touches the brush
   double radius;            // equivalent sphere
+  double charging_radius;   // r_q of Pauthenier's law (ShapeElectrics)
+  double face_area;         // a flat flake lying flat over the drum: A; else 0
 };
 
 class ElectrostaticsStage {
  public:
-  ElectrostaticsStage(ElectrostaticsSpec spec, std::vector<double> unit_radius)
-      : spec_(std::move(spec)), unit_radius_(std::move(unit_radius)) {
+  ElectrostaticsStage(ElectrostaticsSpec spec, std::vector<ShapeElectrics> shapes)
+      : spec_(std::move(spec)), shapes_(std::move(shapes)) {
     has_mixed_ = std::any_of(spec_.materials.begin(), spec_.materials.end(),
                              [](const ElectricalMaterial& m) { return is_mixed(m); });
   }
@@ -157,7 +250,7 @@ class ElectrostaticsStage {
   void operator()(World& world, const Contacts& contacts) {
     Particles& p = world.particles();
     const double h = world.model().step;
-    find_touches(contacts, world.bodies(), p.size(), h);
+    find_touches(contacts, world.bodies(), p, h);
     load_mixed(p);
     const auto n = std::ptrdiff_t(p.size());
 #pragma omp parallel for schedule(static) if (p.size() > kParallelMin)
@@ -172,17 +265,27 @@ class ElectrostaticsStage {
 
   // This step's touches, from the contact list (body contacts name the body
   // first and point their normal out of it). A cluster touching the drum
-  // with several spheres uses its closest contact.
-  void find_touches(const Contacts& c, const Bodies& bodies, std::size_t np, double h) {
+  // with several spheres uses its closest contact. Also the closest drum
+  // contact in the list whether touching or not (within the collision
+  // envelope: a quarter of the sphere radius plus one step's travel), for
+  // the image force, which does not stop when a particle hops off by a
+  // fraction of a millimetre.
+  void find_touches(const Contacts& c, const Bodies& bodies, const Particles& p, double h) {
+    const std::size_t np = p.size();
     drum_contact_.assign(np, -1);
+    near_contact_.assign(np, -1);
     brush_touch_.assign(np, 0);
     const int drum = int(np) + spec_.drum_body;
     const int brush = spec_.brush_body ? int(np) + *spec_.brush_body : -1;
     for (std::size_t k = 0; k < c.size(); ++k) {
       const int body = c.body_a[k];
       if (body != drum && body != brush) continue;
-      if (c.gap[k] > touch_tolerance(c, k, bodies, std::size_t(body) - np, h)) continue;
       const auto i = std::size_t(c.body_b[k]);
+      if (body == drum) {
+        std::int32_t& near = near_contact_[i];
+        if (near < 0 || c.gap[k] < c.gap[std::size_t(near)]) near = std::int32_t(k);
+      }
+      if (c.gap[k] > touch_tolerance(c, k, bodies, std::size_t(body) - np, p, i, h)) continue;
       if (body == brush) {
         brush_touch_[i] = 1;
         continue;
@@ -224,13 +327,27 @@ class ElectrostaticsStage {
   Site site(const Particles& p, std::size_t i, const Contacts& c) const {
     const Vec3& x = p.position[i];
     const bool active = std::abs(x.z()) <= spec_.drum.half_width;
-    const std::int32_t k = drum_contact_[i];
+    const std::int32_t k = drum_contact_[i], kn = near_contact_[i];
+    const Vec3* near = kn >= 0 ? &c.normal[std::size_t(kn)] : nullptr;
+    const ShapeElectrics& shape = shapes_[std::size_t(p.shape[i])];
+    const double s = p.scale[i];
     return {x,
             active ? field_at(spec_.field, x) : Vec3::Zero(),
             active,
             k >= 0 ? &c.normal[std::size_t(k)] : nullptr,
+            near,
+            kn >= 0 ? std::max(0.0, c.gap[std::size_t(kn)]) : 0.0,
             brush_touch_[i] != 0,
-            particle_radius(p, i, unit_radius_)};
+            s * shape.radius,
+            s * shape.charging_radius,
+            lies_flat(shape, p.orientation[i], near) ? s * s * shape.face_area : 0.0};
+  }
+
+  // A flat flake lies on the drum with its face when its face normal is
+  // within the shape's tilt of the contact normal (either face down).
+  static bool lies_flat(const ShapeElectrics& shape, const Quat& orientation, const Vec3* normal) {
+    if (shape.face_area <= 0.0 || !normal) return false;
+    return std::abs((orientation * shape.face_normal).dot(*normal)) >= shape.flat_cos;
   }
 
   // One particle: both parts' charges for this step, then the w-weighted
@@ -265,21 +382,30 @@ class ElectrostaticsStage {
     if (at.active) {
       for (const CoronaZone& zone : spec_.corona) {
         if (in_zone(zone, spec_.drum.radius, at.position))
-          charge =
-              corona_step(charge, at.radius, m.relative_permittivity, zone, at.field.norm(), h);
+          charge = corona_step(charge, at.charging_radius, m.relative_permittivity, zone,
+                               at.field.norm(), h);
       }
     }
     if (at.brush) charge = 0.0;
     Vec3 force = charge * at.field;
-    if (at.drum_normal)
-      force -= image_force(charge, at.radius, spec_.medium_relative_permittivity) * *at.drum_normal;
+    if (at.near_normal) {
+      // At the gap of the closest sphere: a flake lying flat by the
+      // bridged face law, anything else by the sphere law with its charge
+      // r + gap from the drum.
+      const double eps = spec_.medium_relative_permittivity;
+      const double pull = at.face_area > 0.0
+                              ? flat_image_force(charge, at.face_area, eps, at.near_gap)
+                              : image_force(charge, at.radius + at.near_gap, eps);
+      force -= pull * *at.near_normal;
+    }
     return force;
   }
 
   ElectrostaticsSpec spec_;
-  std::vector<double> unit_radius_;
+  std::vector<ShapeElectrics> shapes_;  // per Model shape
   bool has_mixed_ = false;
   std::vector<std::int32_t> drum_contact_;  // per particle: touching drum contact, or -1
+  std::vector<std::int32_t> near_contact_;  // per particle: closest drum contact, or -1
   std::vector<std::uint8_t> brush_touch_;   // per particle
   std::vector<double> metal_charge_;        // per particle, mixed materials only
   std::vector<std::pair<std::uint64_t, double>> mixed_by_id_;  // between steps, sorted
@@ -303,7 +429,9 @@ void add_drag_stage(World& world, DragSpec spec) {
 
 void add_electrostatics_stage(World& world, ElectrostaticsSpec spec) {
   validate(spec, world.model());
-  world.add_force_stage(ElectrostaticsStage(std::move(spec), unit_radii(world.model())));
+  std::vector<ShapeElectrics> shapes;
+  for (const ParticleShape& s : world.model().shapes) shapes.push_back(shape_electrics(s));
+  world.add_force_stage(ElectrostaticsStage(std::move(spec), std::move(shapes)));
 }
 
 }  // namespace ces::fields

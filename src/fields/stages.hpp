@@ -8,8 +8,9 @@
 // fields/electric.hpp: drum axis = z through the origin, gravity −y.
 //
 // The laws are those of spheres; a sphere cluster uses its equivalent sphere,
-// r = scale · (3 V / 4π)^(1/3) with V its shape's volume. Forces act at the
-// centre of mass (no torque). Every particle is updated by its own loop
+// r = scale · (3 V / 4π)^(1/3) with V its shape's volume, except that a flat
+// insulating flake charges and is pinned as a flake (ShapeElectrics below).
+// Forces act at the centre of mass (no torque). Every particle is updated by its own loop
 // iteration, so charges and forces are bitwise the same for any thread count.
 #pragma once
 #include <limits>
@@ -37,6 +38,45 @@ struct DragSpec {
 void add_drag_stage(World& world, DragSpec spec);
 
 // -------------------------------------------------------- electrostatics --
+
+// How a particle shape takes corona charge and is pinned to the drum by its
+// image charge, at scale 1 (lengths scale with Particles::scale, areas with
+// its square).
+//
+// Compact shapes (spheres, grains, rods, most clusters) use the sphere of
+// equal volume, r = (3V/4π)^⅓: Pauthenier's Q_s = 4π ε0 r² p E and the
+// image force Q² / (4π ε0 εr (2r)²) of a charge at the centre (PHYSICS §3).
+//
+// Flat shapes (the built-in flake up to aspect 1/3; any cluster at least
+// three times as wide as thick both ways across its thinnest principal
+// axis):
+//  - face_area A: the shadow of its spheres on the plane across that axis,
+//    the face that lies on the drum (0.60 for the unit flake of aspect 0.2,
+//    2.10 d² in its equal-volume diameter d);
+//  - charge (an assumption, stated in the README): Pauthenier's saturation
+//    surface density p ε0 E over the flake's surface S = 2A + P t, P =
+//    2√(πA) (the perimeter of a disc of area A), t = V/A (the plate of the
+//    cluster's volume on that footprint); that is Pauthenier with the
+//    surface-equivalent radius r_q = √(S/4π), which for a sphere is r. At
+//    aspect 0.2, S = 5.48 d² against the equal-volume sphere's π d², so the
+//    charge is 1.75x. Per unit of face area it is 2.61 p ε0 E = 5.4 ε0 E
+//    (FR-4, p = 2.06), within what a flake lying on the grounded drum can
+//    hold before the field over the middle of its top face reverses: 3.2
+//    ε0 E for a disc of radius 2.5 t without dielectric (its charge sheet and
+//    image, σ t / (ε0 √(4t² + a²)) above it), more with the flake's εr
+//    between the sheet and the drum;
+//  - image force: Q² / (2 ε0 εr A) while it lies flat on the drum (tilted
+//    by less than the angle at which its rim lifts off by its own
+//    thickness, sin α = t/W); on its edge, the equal-volume sphere's law.
+struct ShapeElectrics {
+  double radius = 0.0;               // equal-volume sphere (m at scale 1)
+  double charging_radius = 0.0;      // r_q of Pauthenier's Q_s
+  double face_area = 0.0;            // A (m² at scale 1); 0: a compact shape
+  Vec3 face_normal = Vec3::UnitZ();  // flat shapes: normal of the face, principal frame
+  double flat_cos = 1.0;             // lying flat when |face_normal · n_drum| >= flat_cos
+};
+
+ShapeElectrics shape_electrics(const ParticleShape& shape);
 
 inline constexpr double kNoDecay = std::numeric_limits<double>::infinity();
 
@@ -86,11 +126,19 @@ struct CoronaZone {
 //    0.832 Q_c (E·n) n; off the drum, the last Q_c is kept and the force is
 //    Q_c E.
 //  - insulating part: decays by exp(−h/τ), charges in a corona zone, is
-//    zeroed by a touch of the brush; the force is Q E, plus, touching the
-//    drum, the image force Q² / (4π ε0 εr_medium (2r)²) along −n.
+//    zeroed by a touch of the brush; the force is Q E, plus the image force
+//    along −n of its closest drum contact in this step's list (touching or
+//    within the collision envelope, gap g): Q² / (4π ε0 εr_medium (2(r +
+//    g))²), or for a flat flake lying flat over the drum the face law Q² /
+//    (2 ε0 εr_medium A) at g = 0, bridged to a point charge far off
+//    (flat_image_force; ShapeElectrics). The image force does not wait for a
+//    touch because the relaxed contact model makes a particle that lands
+//    sliding hop by a fraction of a millimetre, while its charge keeps
+//    pulling it back (a flake's by the same parallel-plate force).
 // "Touching" is decided from this step's contacts: a gap below 1 % of the
 // sphere radius, plus the chord sag a particle carried by a turning body
-// shows at the start of a step (see stages.cpp). E is the field at the
+// shows at the start of a step, plus the lift 2 μ |v_t| h the relaxed cone
+// complementarity gives a contact sliding at v_t (see stages.cpp). E is the field at the
 // particle's centre, taken as zero where |z| > drum.half_width whatever the
 // field model returns: no corona charging and no electric force there (a
 // conductor touching the drum there discharges). Decay and the brush act
