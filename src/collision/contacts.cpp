@@ -46,4 +46,22 @@ void Contacts::append(const Contacts& o) {
   extend(key, o.key);
 }
 
+void Contacts::compact_tail(std::size_t first, const std::vector<std::uint8_t>& keep) {
+  auto squeeze = [&](auto& v) {
+    std::size_t to = first;
+    for (std::size_t k = 0; k < keep.size(); ++k)
+      if (keep[k]) v[to++] = v[first + k];
+    v.resize(to);
+  };
+  squeeze(body_a);
+  squeeze(body_b);
+  squeeze(normal);
+  squeeze(point);
+  squeeze(gap);
+  squeeze(radius);
+  squeeze(friction);
+  squeeze(restitution);
+  squeeze(key);
+}
+
 }  // namespace ces
