@@ -117,6 +117,21 @@ void Collider::collide(const Model& model, const Particles& p, const Bodies& bod
     centers_[i] = p.position[i];
     reach_[i] = bounding + envelope_[i];
   }
+  // World centres of every particle's spheres, once per step: the pair loop
+  // below visits each of them once per neighbour.
+  sphere_first_.resize(n + 1);
+  sphere_first_[0] = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    sphere_first_[i + 1] = sphere_first_[i] + model.shapes[std::size_t(p.shape[i])].centers.size();
+  sphere_centre_.resize(sphere_first_[n]);
+#pragma omp parallel for schedule(static) if (n > 256)
+  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(n); ++s) {
+    const auto i = std::size_t(s);
+    const ParticleShape& shape = model.shapes[std::size_t(p.shape[i])];
+    const Mat3 R = p.orientation[i].toRotationMatrix() * p.scale[i];
+    for (std::size_t k = 0; k < shape.centers.size(); ++k)
+      sphere_centre_[sphere_first_[i] + k] = p.position[i] + R * shape.centers[k];
+  }
   particle_pairs(model, p, out);
   for (std::size_t b = 0; b < model.bodies.size(); ++b) body_contacts(model, p, bodies, int(b), out);
   narrowphase_seconds_ = seconds_since(t0) - broadphase_seconds_;
@@ -138,10 +153,16 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
       const double envelope = envelope_[ui] + envelope_[uj];
       const double sci = p.scale[ui], scj = p.scale[uj];
       const std::size_t first = part.size();
+      const Vec3* centre_i = &sphere_centre_[sphere_first_[ui]];
+      const Vec3* centre_j = &sphere_centre_[sphere_first_[uj]];
+      const double reach_j = sj.bounding_radius * scj + envelope;
       for (std::size_t a = 0; a < si.centers.size(); ++a) {
-        const Vec3 ca = p.position[ui] + p.orientation[ui] * (sci * si.centers[a]);
+        const Vec3& ca = centre_i[a];
+        // Skip a sphere of i that cannot reach any sphere of j.
+        const double far = reach_j + sci * si.radii[a];
+        if ((ca - p.position[uj]).squaredNorm() > far * far) continue;
         for (std::size_t b = 0; b < sj.centers.size(); ++b) {
-          const Vec3 cb = p.position[uj] + p.orientation[uj] * (scj * sj.centers[b]);
+          const Vec3& cb = centre_j[b];
           const ContactKey key{p.id[ui], p.id[uj], std::uint32_t(a), std::uint32_t(b)};
           sphere_sphere(ca, sci * si.radii[a], cb, scj * sj.radii[b], envelope, i, j, mu, e, key,
                         part);
@@ -178,7 +199,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
       const double e = mat.restitution(rb.material, p.material[i]);
       const std::size_t first = part.size();
       for (std::size_t k = 0; k < s.centers.size(); ++k) {
-        const Vec3 c = p.position[i] + p.orientation[i] * (p.scale[i] * s.centers[k]);
+        const Vec3& c = sphere_centre_[sphere_first_[i] + k];
         const double r = p.scale[i] * s.radii[k];
         // The body's surface may close in too (a splitter on its slide), by
         // its speed along the normal; a drum turning in place adds nothing.

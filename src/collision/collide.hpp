@@ -26,6 +26,8 @@ class Collider {
                      Contacts& out);
 
   std::vector<Vec3> centers_;
+  std::vector<std::size_t> sphere_first_;  // particle i's spheres: [first[i], first[i + 1])
+  std::vector<Vec3> sphere_centre_;        // in the world, this step
   std::vector<double> reach_, envelope_;
   std::vector<std::pair<std::int32_t, std::int32_t>> pairs_;
   std::vector<Contacts> chunks_;
