@@ -124,8 +124,8 @@ TEST(Engine, RaftOnInclineSlidesWithCoulombAcceleration) {
 }
 
 // Manifold reduction: a 5 x 5 raft of touching spheres lying on a surface
-// touches it with 25 spheres; four spanning the raft (its corners) are kept
-// and hold it level. In the corner of an L-shaped mesh the wall's contacts,
+// touches it with 25 spheres; its four corners and the deepest contact are
+// kept and hold it level. In the corner of an L-shaped mesh the wall's contacts,
 // with another normal, are reduced on their own. 500 steps of 1 ms: the raft
 // stays level within 1e-3 rad and sinks less than 1 % of r.
 std::unique_ptr<World> raft_on(std::shared_ptr<Model> m, double r) {
@@ -146,11 +146,14 @@ TEST(Engine, FlatRaftKeepsFourContactsAndStaysLevel) {
   m->bodies.push_back(ground_plane());
   auto w = raft_on(m, r);
   w->step();
-  ASSERT_EQ(w->contacts().size(), 4u);
-  for (std::size_t k = 0; k < 4; ++k) {  // the corners, at (±4r, ±4r)
-    EXPECT_NEAR(std::abs(w->contacts().point[k].x()), 4 * r, 1e-9);
-    EXPECT_NEAR(std::abs(w->contacts().point[k].z()), 4 * r, 1e-9);
-  }
+  const Contacts& c = w->contacts();
+  ASSERT_GE(c.size(), 4u);
+  ASSERT_LE(c.size(), 5u);
+  int corners = 0;  // at (±4r, ±4r)
+  for (std::size_t k = 0; k < c.size(); ++k)
+    corners += std::abs(std::abs(c.point[k].x()) - 4 * r) < 1e-9 &&
+               std::abs(std::abs(c.point[k].z()) - 4 * r) < 1e-9;
+  EXPECT_EQ(corners, 4);
   for (int i = 0; i < 500; ++i) w->step();
   const Particles& p = w->particles();
   const Vec3 up = p.orientation[0] * Vec3::Unit(0);  // any in-plane axis stays horizontal
@@ -178,9 +181,9 @@ TEST(Engine, RaftInMeshCornerKeepsContactsOnBothFaces) {
     if (std::abs(n.y()) > 0.99) ++floor;
     if (std::abs(n.x()) > 0.99) ++wall;
   }
-  EXPECT_EQ(floor, 4u);
-  EXPECT_GE(wall, 2u);  // the five spheres of the edge row, reduced to their span
-  EXPECT_LE(wall, 4u);
+  EXPECT_GE(floor, 4u);  // 25 reduced to the corners and the deepest
+  EXPECT_LE(floor, 5u);
+  EXPECT_EQ(wall, 5u);  // the five spheres of the edge row, at most five: all kept
   for (int i = 0; i < 500; ++i) w->step();
   EXPECT_LT(r - w->particles().position[0].y(), 0.01 * r);
   EXPECT_GT(w->particles().position[0].x(), -0.01 * r);

@@ -34,13 +34,16 @@ void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double 
 }
 
 // A flat face resting on another touches it with many of its spheres at
-// once (a flake lying on the drum: 19). Four spanning the face hold it as
-// well and cost a fifth, so per group of nearly parallel normals the
-// contacts from `first` on keep the deepest, the farthest from it, and the
-// farthest on either side of the line through those two (manifold reduction,
-// as Box2D and Jolt do it). A group with other normals (a corner) keeps its own.
+// once (a flake lying on the drum: 19). A few spanning the face hold it as
+// well and cost far less, so per group of nearly parallel normals the
+// contacts from `first` on keep the deepest (it carries the overlap) and four
+// that span the face, chosen by position only so that gap noise between
+// steps does not change them: the farthest from the group's centroid, the
+// farthest from that one, and the farthest on either side of their line
+// (manifold reduction, as Box2D and Jolt do it). A group with other normals
+// (a corner) keeps its own.
 void reduce_manifold(Contacts& c, std::size_t first) {
-  constexpr std::size_t kKeep = 4;
+  constexpr std::size_t kKeep = 5;
   constexpr double kSameNormal = 0.95;  // cos 18°
   const std::size_t n = c.size() - first;
   if (n <= kKeep) return;
@@ -65,20 +68,25 @@ void reduce_manifold(Contacts& c, std::size_t first) {
       for (std::size_t k : members) keep[k - first] = 1;
       continue;
     }
-    // Ties go to the earlier contact: the choice depends on the contacts only.
+    // The highest score wins; ties go to the earlier contact.
     auto best = [&](auto score) {
       std::size_t arg = members[0];
+      double top = score(arg);
       for (std::size_t k : members)
-        if (score(k) > score(arg)) arg = k;
+        if (const double v = score(k); v > top) arg = k, top = v;
       return arg;
     };
-    const std::size_t a = best([&](std::size_t k) { return -c.gap[k]; });
+    Vec3 centroid = Vec3::Zero();
+    for (std::size_t k : members) centroid += c.point[k];
+    centroid /= double(members.size());
+    const std::size_t deepest = best([&](std::size_t k) { return -c.gap[k]; });
+    const std::size_t a = best([&](std::size_t k) { return (c.point[k] - centroid).squaredNorm(); });
     const Vec3& pa = c.point[a];
     const std::size_t b = best([&](std::size_t k) { return (c.point[k] - pa).squaredNorm(); });
     const Vec3 side = c.normal[a].cross(c.point[b] - pa);
     const std::size_t left = best([&](std::size_t k) { return (c.point[k] - pa).dot(side); });
     const std::size_t right = best([&](std::size_t k) { return -(c.point[k] - pa).dot(side); });
-    for (std::size_t k : {a, b, left, right}) keep[k - first] = 1;
+    for (std::size_t k : {deepest, a, b, left, right}) keep[k - first] = 1;
   }
   c.compact_tail(first, keep);
 }
@@ -144,7 +152,11 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
   const auto& mat = model.materials;
   run_chunked(pairs_.size(), chunks_, out, [&](std::size_t begin, std::size_t end, Contacts& part) {
     for (std::size_t k = begin; k < end; ++k) {
-      const auto [i, j] = pairs_[k];
+      // A before B by id, not index: particles move in the arrays (removal,
+      // spatial reorder), and the key must stay the same for the warm start
+      // and DEM's tangential history.
+      auto [i, j] = pairs_[k];
+      if (p.id[std::size_t(i)] > p.id[std::size_t(j)]) std::swap(i, j);
       const auto ui = std::size_t(i), uj = std::size_t(j);
       const ParticleShape& si = model.shapes[std::size_t(p.shape[ui])];
       const ParticleShape& sj = model.shapes[std::size_t(p.shape[uj])];
@@ -180,10 +192,12 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   const geo::Aabb bounds = geo::local_bounds(rb.shape);
   const Vec3& v_body = bodies.velocity[std::size_t(body)];
   const Vec3& w_body = bodies.angular_velocity[std::size_t(body)];
-  // How far any point of the body moves this step, for the cull. (A plane's
-  // bounds are infinite: only a turning body adds the swing term.)
+  // How far any point of the body moves this step, for the cull: it turns
+  // about its frame's origin, reaching at most the farthest corner of its
+  // bounds. (A plane's are infinite: only a turning body adds the term.)
   const double w_norm = w_body.norm();
-  const double swing = w_norm > 0.0 ? w_norm * 0.5 * (bounds.max - bounds.min).norm() : 0.0;
+  const double swing =
+      w_norm > 0.0 ? w_norm * bounds.min.cwiseAbs().cwiseMax(bounds.max.cwiseAbs()).norm() : 0.0;
   const double body_travel = (v_body.norm() + swing) * model.step;
   const int solver_index = int(p.size()) + body;
   const auto& mat = model.materials;
