@@ -403,6 +403,18 @@ TEST(Corona, PauthenierGrowthInZone) {
   EXPECT_EQ(w.particles().charge[1], 0.0);
 }
 
+// The seed's corona zone, 80-100° from the top and 5 mm deep, charging to
+// saturation at once in 4.13 kV/cm (with space charge, PHYSICS §3 table).
+CoronaZone saturation_zone() {
+  CoronaZone zone;
+  zone.angle_begin = 80.0 * kDeg;
+  zone.angle_end = 100.0 * kDeg;
+  zone.depth = 5e-3;
+  zone.mode = CoronaCharging::Saturation;
+  zone.field = 4.13e5;  // V/m
+  return zone;
+}
+
 // The seed's instant charging: Q_s of the zone's field after one step, and
 // no further change. Tolerance 1e-12 relative.
 TEST(Corona, SaturationModeChargesOnEntry) {
@@ -410,12 +422,7 @@ TEST(Corona, SaturationModeChargesOnEntry) {
   World w(m);
   add_on_drum(w, 1, 0.0);
   ElectrostaticsSpec spec = electrostatics(reference_field(), mats);
-  CoronaZone zone;
-  zone.angle_begin = 80.0 * kDeg;
-  zone.angle_end = 100.0 * kDeg;
-  zone.depth = 5e-3;
-  zone.mode = CoronaCharging::Saturation;
-  zone.field = 4.13e5;  // V/m, with space charge (PHYSICS §3 table)
+  CoronaZone zone = saturation_zone();
   zone.ion_sign = 1.0;
   spec.corona = {zone};
   add_electrostatics_stage(w, spec);
@@ -640,6 +647,16 @@ ParticleShape unit_flake() {
 }
 constexpr double kFlakeFace = 19.0 * kPi * 0.01;
 
+// An FR-4 flake's model for the electrics checks: no gravity, 1 ms steps,
+// the unit flake as its last shape (a drum to be added).
+std::shared_ptr<Model> flake_model(std::vector<MaterialSpec>& mats) {
+  mats = {{kFr4, 0.5, ElectricalMaterial::insulator(kFr4Permittivity)}};
+  auto m = make_model(1e-3, mats);
+  m->gravity.setZero();
+  m->shapes.push_back(unit_flake());
+  return m;
+}
+
 // Flat shapes take the face law, compact ones keep the sphere's. Areas by
 // the stage's grid count within 0.2 % of the exact union of discs; the
 // charging radius from S = 2A + 2√(πA) V/A written out (PHYSICS-free: the
@@ -699,11 +716,8 @@ TEST(FlakeElectrics, FaceAreaChargingRadiusAndTilt) {
 // A = 19 π (0.1 s)²); stood on its rim it is pulled by the sphere law of its
 // equal-volume sphere. Tolerance 0.2 % (the stage's area count).
 TEST(FlakeElectrics, ImageForceOfAFlakeIsTheFaceLawLyingFlat) {
-  const std::vector<MaterialSpec> mats = {
-      {kFr4, 0.5, ElectricalMaterial::insulator(kFr4Permittivity)}};
-  auto m = make_model(1e-3, mats);
-  m->gravity.setZero();
-  m->shapes.push_back(unit_flake());
+  std::vector<MaterialSpec> mats;
+  auto m = flake_model(mats);
   const int flake = int(m->shapes.size()) - 1;
   m->bodies.push_back(drum(0.0));
   const ShapeElectrics e = shape_electrics(m->shapes.back());
@@ -742,11 +756,8 @@ TEST(FlakeElectrics, ImageForceOfAFlakeIsTheFaceLawLyingFlat) {
 // Corona charge of a flake lying on the drum: Pauthenier's saturation with
 // the surface-equivalent radius, Q = p ε0 E S (stages.hpp), 1e-12 relative.
 TEST(FlakeElectrics, FlakeChargesToPauthenierDensityOverItsSurface) {
-  const std::vector<MaterialSpec> mats = {
-      {kFr4, 0.5, ElectricalMaterial::insulator(kFr4Permittivity)}};
-  auto m = make_model(1e-3, mats);
-  m->gravity.setZero();
-  m->shapes.push_back(unit_flake());
+  std::vector<MaterialSpec> mats;
+  auto m = flake_model(mats);
   m->bodies.push_back(drum(0.0));
   const ParticleShape& shape = m->shapes.back();
   const ShapeElectrics e = shape_electrics(shape);
@@ -755,13 +766,7 @@ TEST(FlakeElectrics, FlakeChargesToPauthenierDensityOverItsSurface) {
   w.add_particle(int(m->shapes.size()) - 1, s, 1, Vec3(0, kDrumRadius + 0.1 * s, 0),
                  Quat::FromTwoVectors(e.face_normal, Vec3::UnitY()));
   ElectrostaticsSpec spec = electrostatics(reference_field(), mats);
-  CoronaZone zone;
-  zone.angle_begin = 80.0 * kDeg;
-  zone.angle_end = 100.0 * kDeg;
-  zone.depth = 5e-3;
-  zone.mode = CoronaCharging::Saturation;
-  zone.field = 4.13e5;
-  spec.corona = {zone};
+  spec.corona = {saturation_zone()};
   add_electrostatics_stage(w, spec);
   w.step();
   const double a = e.face_area * s * s;
