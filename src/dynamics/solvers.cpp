@@ -58,12 +58,15 @@ struct Best {
 //   f(x1) <= f(y) + g(y).d + L/2 |d|^2,  d = x1 - y,
 // is exactly d.(g(x1) - g(y)) <= L |d|^2, which needs no objective values.
 // The sums of an iteration come from one fused pass over the rows.
-SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws) {
+SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, SolverWorkspace& ws) {
   const std::size_t m = p.row_count();
   if (m == 0) return {0, 0.0, 0.0, true};
-  const Span gx = sized(ws.gx, m), y = sized(ws.y, m), gy = sized(ws.g, m), x1 = sized(ws.x1, m),
-             g1 = sized(ws.nd, m), best = sized(ws.best, m), probe = sized(ws.d, m);
+  // x and x1, and their gradients, trade buffers each iteration (no copies).
+  Span x = sized(ws.r, m), gx = sized(ws.gx, m), x1 = sized(ws.x1, m), g1 = sized(ws.nd, m);
+  const Span y = sized(ws.y, m), gy = sized(ws.g, m), best = sized(ws.best, m),
+             probe = sized(ws.d, m);
   const double inv_s = p.diagonal_max(), s_res = 1.0 / inv_s;  // the residual's step
+  copy(out, x);
   p.gradient(x, gx);
   copy(x, y);
   copy(gx, gy);
@@ -114,7 +117,7 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span x, Solv
       record.take(rms, t.res_max);
       record.stats.converged = true;
       record.stats.iterations = it + 1;
-      copy(x1, x);
+      copy(x1, out);
       return record.stats;
     }
     const bool improves = record.improves(rms);
@@ -131,13 +134,13 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span x, Solv
       if (improves) best[i] = x1[i];
       y[i] = ca * x1[i] - cb * x[i];
       gy[i] = ca * g1[i] - cb * gx[i];
-      x[i] = x1[i];
-      gx[i] = g1[i];
     }
+    std::swap(x, x1);  // the accepted iterate becomes x; x1's buffer is free
+    std::swap(gx, g1);
     L *= 0.9;
   }
   record.stats.iterations = it;
-  copy(best, x);
+  copy(best, out);
   return record.stats;
 }
 
