@@ -74,7 +74,6 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   mu_ = c.friction;
   for (auto* f : {&n_, &t1_, &t2_, &ra_, &rb_}) f->resize(nc);
   bias_.resize(nc);
-  diag_.resize(nc);
   double diag_max = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : diag_max) if (std::ptrdiff_t(nc) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(nc); ++s) {
@@ -98,9 +97,8 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     if (impact && c.restitution[k] > 0.0) bias = std::min(bias, c.restitution[k] * approach);
     bias_[k] = bias;
     const Vec3 nw = wide(n_[k]);  // the rounded row the kernel applies
-    diag_[k] = row_mass(B, a_[k], nw, wide(ra_[k]).cross(nw)) +
-               row_mass(B, b_[k], nw, wide(rb_[k]).cross(nw));
-    diag_max = std::max(diag_max, diag_[k]);
+    diag_max = std::max(diag_max, row_mass(B, a_[k], nw, wide(ra_[k]).cross(nw)) +
+                                      row_mass(B, b_[k], nw, wide(rb_[k]).cross(nw)));
   }
   row_diag_.resize(rows_.size());
   for (std::size_t j = 0; j < rows_.size(); ++j) {
@@ -275,21 +273,21 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys,
 }
 
 double CcpProblem::block_bound(std::size_t k) const {
-  // Gershgorin bound on the largest eigenvalue of the contact's 3x3 block of N.
+  // Gershgorin bound on the largest eigenvalue of the contact's 3x3 block of
+  // N: per body, m^-1 D D^T + C I^-1 C^T with D the rows (n, t1, t2) and C
+  // their lever-arm rows r x d.
   const Vec3 dir[3] = {wide(n_[k]), wide(t1_[k]), wide(t2_[k])};
+  Mat3 D;
+  for (int i = 0; i < 3; ++i) D.row(i) = dir[i].transpose();
   Mat3 block = Mat3::Zero();
-  auto add = [&](int body, const Vec3& r, double sign) {
-    if (body < 0) return;
+  auto add = [&](int body, const Vec3& r) {
     const auto u = std::size_t(body);
-    Eigen::Matrix<double, 3, 6> J;
-    for (int i = 0; i < 3; ++i) J.row(i) << sign * dir[i].transpose(), sign * r.cross(dir[i]).transpose();
-    Eigen::Matrix<double, 6, 6> Minv = Eigen::Matrix<double, 6, 6>::Zero();
-    Minv.topLeftCorner<3, 3>() = bodies_->inv_mass[u] * Mat3::Identity();
-    Minv.bottomRightCorner<3, 3>() = bodies_->inv_inertia[u];
-    block += J * Minv * J.transpose();
+    Mat3 C;
+    for (int i = 0; i < 3; ++i) C.row(i) = r.cross(dir[i]).transpose();
+    block += bodies_->inv_mass[u] * D * D.transpose() + C * bodies_->inv_inertia[u] * C.transpose();
   };
-  add(a_[k], wide(ra_[k]), -1.0);
-  add(b_[k], wide(rb_[k]), 1.0);
+  add(a_[k], wide(ra_[k]));
+  add(b_[k], wide(rb_[k]));
   return block.cwiseAbs().rowwise().sum().maxCoeff();
 }
 
@@ -301,17 +299,15 @@ SolveStats CcpProblem::solve_pgs(Span x, const SolverSettings& s, SolverWorkspac
   const std::size_t nc = a_.size();
   // One step per contact block: with the normal row's 1/diag alone, a
   // cluster's tangential rows (large lever arms) were over-stepped and diverged.
-  ws.d.resize(nc);
+  const Span steps = ws.take(0, nc), g = ws.take(1, x.size());
   for (std::size_t k = 0; k < nc; ++k) {
     const double bound = block_bound(k);
-    ws.d[k] = bound > 0.0 ? s.pgs_relaxation / bound : 0.0;
+    steps[k] = bound > 0.0 ? s.pgs_relaxation / bound : 0.0;
   }
-  ws.g.resize(x.size());
-  const Span g(ws.g);
   SolveStats stats;
   for (int it = 0; it < s.max_iterations; ++it) {
     for (std::size_t k = 0; k < nc; ++k) {
-      const double step = ws.d[k];
+      const double step = steps[k];
       if (step <= 0.0) continue;
       const Vec3 ra = wide(ra_[k]), rb = wide(rb_[k]), n = wide(n_[k]), t1 = wide(t1_[k]), t2 = wide(t2_[k]);
       const Vec3 rel = point_velocity(v, w, b_[k], rb) - point_velocity(v, w, a_[k], ra);

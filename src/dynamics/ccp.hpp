@@ -19,6 +19,7 @@
 #pragma once
 #include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <span>
@@ -66,10 +67,15 @@ struct SolveStats {
 };
 
 // The solvers' vectors. They live across steps and only grow (std::vector
-// keeps its capacity), so a run stops allocating once its contact count peaks.
+// keeps its capacity), so a run stops allocating once its contact count
+// peaks. Each solver names the buffers it takes by what it keeps in them.
 struct SolverWorkspace {
-  std::vector<double> r, g, gx, y, x1, best, d, nd;
-  std::vector<Vec3> v, w;  // projected Gauss-Seidel's running velocities
+  std::array<std::vector<double>, 8> row;  // vectors over the CCP's rows
+  std::vector<Vec3> v, w;                  // projected Gauss-Seidel's running velocities
+  Span take(std::size_t i, std::size_t m) {
+    row[i].resize(m);
+    return Span(row[i]);
+  }
 };
 
 class CcpProblem {
@@ -125,7 +131,7 @@ class CcpProblem {
   // Contacts, structure of arrays.
   std::vector<std::int32_t> a_, b_;
   std::vector<Vec3f> n_, t1_, t2_, ra_, rb_;
-  std::vector<double> mu_, bias_, diag_;
+  std::vector<double> mu_, bias_;
   std::vector<BilateralRow> rows_;
   std::vector<double> row_diag_;
   ContactAdjacency adj_;  // bodies with finite mass

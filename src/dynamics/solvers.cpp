@@ -11,11 +11,6 @@ namespace {
 
 constexpr std::ptrdiff_t kParallelMin = 768;  // rows; below this, threads cost more than they save
 
-Span sized(std::vector<double>& v, std::size_t m) {
-  v.resize(m);
-  return Span(v);
-}
-
 void copy(ConstSpan from, Span to) { std::copy(from.begin(), from.end(), to.begin()); }
 
 double dot(ConstSpan a, ConstSpan b) {
@@ -62,9 +57,8 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
   const std::size_t m = p.row_count();
   if (m == 0) return {0, 0.0, 0.0, true};
   // x and x1, and their gradients, trade buffers each iteration (no copies).
-  Span x = sized(ws.r, m), gx = sized(ws.gx, m), x1 = sized(ws.x1, m), g1 = sized(ws.nd, m);
-  const Span y = sized(ws.y, m), gy = sized(ws.g, m), best = sized(ws.best, m),
-             probe = sized(ws.d, m);
+  Span x = ws.take(0, m), gx = ws.take(1, m), x1 = ws.take(2, m), g1 = ws.take(3, m);
+  const Span y = ws.take(4, m), gy = ws.take(5, m), best = ws.take(6, m), probe = ws.take(7, m);
   const double inv_s = p.diagonal_max(), s_res = 1.0 / inv_s;  // the residual's step
   copy(out, x);
   p.gradient(x, gx);
@@ -154,8 +148,8 @@ SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, Span x, Solve
   constexpr int kMemory = 10;
   constexpr double kSufficient = 1e-4;
   const double alpha_min = 1e-10 / p.diagonal_max(), alpha_max = 1e10 / p.diagonal_max();
-  const Span r = sized(ws.r, m), g = sized(ws.g, m), d = sized(ws.d, m), nd = sized(ws.nd, m),
-             best = sized(ws.best, m);
+  const Span r = ws.take(0, m), g = ws.take(1, m), d = ws.take(2, m), nd = ws.take(3, m),
+             best = ws.take(4, m);
   p.project(x);
   std::fill(d.begin(), d.end(), 0.0);
   p.gradient(d, r);
