@@ -2,6 +2,7 @@
 //
 //   ces_bench [--quick] [--out DIR] [--scene SCENE [--scene-set KEY=VALUE]...]
 //             [--no-scene] [--ces-sim PATH]
+//   ces_bench --bed SPHERES THREADS     one bed only (A/B of a solver change)
 //
 // - solver contact-iterations per second per core against contact count
 //   (packed beds of ~1e3 to ~1e6 contacts) and the time per step by stage;
@@ -122,7 +123,7 @@ void measure_scene(const Options& o, Results& r) {
 int usage() {
   std::fprintf(stderr,
                "usage: ces_bench [--quick] [--out DIR] [--scene SCENE [--scene-set KEY=VALUE]...] "
-               "[--no-scene] [--ces-sim PATH]\n");
+               "[--no-scene] [--ces-sim PATH]\n       ces_bench --bed SPHERES THREADS\n");
   return 2;
 }
 
@@ -157,6 +158,10 @@ int main(int argc, char** argv) {
   if (argc == 5 && std::string(argv[1]) == "--probe-memory")
     return run_memory_probe(std::stoul(argv[2]), std::string(argv[3]) == "packed",
                             std::stoi(argv[4]));
+  if (argc == 4 && std::string(argv[1]) == "--bed") {
+    Beds(5e7).get(std::stoul(argv[2]), std::stoi(argv[3]));
+    return 0;
+  }
   Options o;
   if (!parse(argc, argv, o)) return usage();
   const auto t0 = Clock::now();
