@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <cmath>
+#include <limits>
 #include <cstring>
 #include <memory>
 
@@ -486,6 +487,32 @@ int stack_iterations(SolverMethod method) {
   const StepStats& s = w.step();
   EXPECT_TRUE(s.solver.converged);
   return s.solver.iterations;
+}
+
+// A contact problem with a NaN in it (the spin of a dynamic box a sphere
+// rests on; a NaN on the particle would leave it without contacts, its
+// envelope being NaN): every solver reports a NaN residual and no
+// convergence, where APGD and SPG used to report 0 for an iterate they
+// never measured.
+TEST(Engine, SolversReportNonFiniteResidual) {
+  for (const SolverMethod method : {SolverMethod::APGD, SolverMethod::SPG, SolverMethod::PGS}) {
+    auto m = base_model();
+    RigidBody box;
+    box.kind = BodyKind::Dynamic;
+    box.shape = geo::Box{Vec3(0.05, 0.01, 0.05)};
+    box.pose.position = Vec3(0, -0.01, 0);
+    box.mass = 1.0;
+    m->bodies.push_back(box);
+    m->solver.method = method;
+    World w(m);
+    const double r = 0.005;
+    w.add_particle(0, r, 0, Vec3(0, r, 0));
+    w.bodies().angular_velocity[0] = Vec3(std::numeric_limits<double>::quiet_NaN(), 0, 0);
+    const StepStats& s = w.step();
+    EXPECT_GE(s.contacts, 1u) << int(method);
+    EXPECT_TRUE(std::isnan(s.solver.residual)) << int(method) << ": " << s.solver.residual;
+    EXPECT_FALSE(s.solver.converged) << int(method);
+  }
 }
 
 TEST(Engine, ApgdBeatsGaussSeidelOnStack) {

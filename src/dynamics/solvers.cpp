@@ -32,10 +32,13 @@ struct TrialPart {
   }
 };
 
+// The best iterate's record. Until a finite residual is met the stats say
+// NaN: a solve whose every residual was NaN or inf must not report 0.
 struct Best {
-  SolveStats stats;
+  SolveStats stats{0, std::numeric_limits<double>::quiet_NaN(),
+                   std::numeric_limits<double>::quiet_NaN(), false};
   double residual = std::numeric_limits<double>::infinity();
-  bool improves(double rms) const { return rms < residual; }
+  bool improves(double rms) const { return rms < residual; }  // false for NaN
   void take(double rms, double max) {
     residual = stats.residual = rms;
     stats.residual_max = max;

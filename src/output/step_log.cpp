@@ -32,7 +32,10 @@ void StepLog::record(const StepStats& s, double wall_seconds) {
     ++sum_.solved_steps;
     iterations_total_ += std::uint64_t(s.solver.iterations);
     sum_.iterations_max = std::max(sum_.iterations_max, s.solver.iterations);
-    residuals_.push_back(s.solver.residual);
+    if (std::isfinite(s.solver.residual))
+      residuals_.push_back(s.solver.residual);
+    else
+      ++sum_.steps_non_finite;
     if (s.solver.iterations >= max_iterations_ && !s.solver.converged) ++sum_.steps_at_cap;
   }
   sum_.max_penetration = std::max(sum_.max_penetration, s.max_penetration);

@@ -21,6 +21,7 @@ struct SolverSummary {
   double residual_p95 = 0.0;
   double residual_max = 0.0;
   std::uint64_t steps_at_cap = 0;  // stopped at max_iterations, not converged
+  std::uint64_t steps_non_finite = 0;  // the solver met no finite residual (not in the percentiles)
   double max_penetration = 0.0;    // m
   double max_penetration_relative = 0.0;
   double max_joint_drift = 0.0;  // m

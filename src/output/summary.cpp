@@ -102,6 +102,7 @@ Json solver_json(const RunRecord& r) {
           {"iterations_mean", s.iterations_mean},
           {"iterations_max", s.iterations_max},
           {"steps_at_iteration_cap", s.steps_at_cap},
+          {"steps_non_finite_residual", s.steps_non_finite},
           {"residual_median_mps", s.residual_median},
           {"residual_p95_mps", s.residual_p95},
           {"residual_max_mps", s.residual_max},
@@ -248,6 +249,10 @@ void add_warnings(RunRecord& r) {
   if (s.steps_at_cap > 0)
     warn(std::to_string(s.steps_at_cap) + " of " + std::to_string(s.solved_steps) +
          " solved steps stopped at the iteration cap before reaching the tolerance");
+  if (s.steps_non_finite > 0)
+    warn(std::to_string(s.steps_non_finite) + " of " + std::to_string(s.solved_steps) +
+         " solved steps met no finite solver residual (NaN or inf in the contact problem): "
+         "those steps kept their warm start");
   if (s.max_penetration_relative > 0.1)
     warn("particles overlapped by up to " +
          std::to_string(int(100.0 * s.max_penetration_relative)) +
