@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "dynamics/world.hpp"
+#include "support.hpp"
 
 namespace ces {
 namespace {
@@ -25,14 +26,6 @@ std::shared_ptr<Model> dem_model(double restitution, double step, double frictio
   m->dem.materials = {kGrain, kSteel};
   m->shapes.push_back(make_particle_shape({Vec3::Zero()}, {1.0}));
   return m;
-}
-
-void add_plane(Model& m) {
-  RigidBody b;
-  b.name = "ground";
-  b.shape = geo::Plane{Vec3::UnitY(), 0.0};
-  b.material = 1;
-  m.bodies.push_back(b);
 }
 
 double e_star(const ElasticProperties& a, const ElasticProperties& b) {
@@ -70,7 +63,7 @@ TEST(Dem, DampingCalibrationInvertsRestitution) {
 // R* = R, E* from both materials. Tolerance: 2 % of delta.
 TEST(Dem, SphereOnPlaneSettlesAtHertzOverlap) {
   auto m = dem_model(0.3, 1e-6);
-  add_plane(*m);
+  m->bodies.push_back(test::ground_plane(Vec3::UnitY(), 1));
   World w(m);
   w.add_particle(0, kRadius, 0, Vec3(0, kRadius, 0));
   for (int i = 0; i < 30000; ++i) w.step();
@@ -90,7 +83,7 @@ TEST(Dem, StepAboveRayleighLimitWarns) {
                           (0.1631 * kGrain.poisson_ratio + 0.8766);
   for (const double step : {1e-5, 1e-4}) {
     auto m = dem_model(0.5, step);
-    add_plane(*m);
+    m->bodies.push_back(test::ground_plane(Vec3::UnitY(), 1));
     World w(m);
     w.add_particle(0, kRadius, 0, Vec3(0, kRadius, 0));
     const StepStats& s = w.step();
@@ -109,7 +102,7 @@ TEST(Dem, OneAndTwoThreadsBitwiseIdentical) {
   for (int t = 0; t < 2; ++t) {
     auto m = dem_model(0.5, 1e-5, 0.5);
     m->threads = t + 1;
-    add_plane(*m);
+    m->bodies.push_back(test::ground_plane(Vec3::UnitY(), 1));
     World w(m);
     for (int i = 0; i < 7; ++i)
       for (int j = 0; j < 7; ++j)

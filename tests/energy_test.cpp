@@ -5,6 +5,7 @@
 
 #include "dynamics/world.hpp"
 #include "output/energy.hpp"
+#include "support.hpp"
 
 namespace ces {
 namespace {
@@ -18,13 +19,6 @@ std::shared_ptr<Model> sphere_model(Vec3 gravity) {
   m->materials = MaterialTable({{"grain", kDensity, 0.0, 0.0}}, {});
   m->shapes.push_back(make_particle_shape({Vec3::Zero()}, {1.0}));
   return m;
-}
-
-void add_ground(Model& m) {
-  RigidBody b;
-  b.name = "ground";
-  b.shape = geo::Plane{Vec3::UnitY(), 0.0};
-  m.bodies.push_back(b);
 }
 
 // The ledger hooked into a World as the runner hooks it (no feeds or collectors).
@@ -67,7 +61,7 @@ TEST(Energy, FreeFallLosesHalfMGSquaredHSquaredPerStep) {
 // supplied. The ledger must see all of it as a gain (1e-12 relative).
 TEST(Energy, StabilisationPushingOutAnOverlapIsAGain) {
   auto m = sphere_model(Vec3::Zero());
-  add_ground(*m);
+  m->bodies.push_back(test::ground_plane());
   World w(m);
   w.add_particle(0, kRadius, 0, Vec3(0, 0.4 * kRadius, 0));
   const output::EnergyBalance e = run_ledger(m, w, 50);
@@ -80,7 +74,7 @@ TEST(Energy, StabilisationPushingOutAnOverlapIsAGain) {
 TEST(Energy, MovingBodiesElectricForcesAndMotorsAreSources) {
   Simulation sim;
   sim.model = sphere_model(Vec3::Zero());
-  add_ground(*sim.model);
+  sim.model->bodies.push_back(test::ground_plane());
   EXPECT_EQ(output::why_not_passive(sim), "");
   sim.model->bodies[0].kind = BodyKind::Kinematic;  // kinematic but still: passive
   EXPECT_EQ(output::why_not_passive(sim), "");

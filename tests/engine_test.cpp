@@ -9,6 +9,7 @@
 
 #include "dynamics/ccp.hpp"
 #include "dynamics/world.hpp"
+#include "support.hpp"
 
 namespace ces {
 namespace {
@@ -28,14 +29,6 @@ std::shared_ptr<Model> base_model(std::vector<double> frictions = {0.5}, double 
   m->solver.max_iterations = 500;
   m->solver.tolerance = 1e-10;
   return m;
-}
-
-RigidBody ground_plane(const Vec3& normal = Vec3::UnitY(), int material = 0) {
-  RigidBody b;
-  b.name = "ground";
-  b.shape = geo::Plane{normal.normalized(), 0.0};
-  b.material = material;
-  return b;
 }
 
 // ---------------------------------------------------------------- free flight
@@ -61,7 +54,7 @@ TEST(Engine, FreeFallAndProjectileMatchDiscreteSolution) {
 // 10,000 steps of 1 ms: drift below 1e-6 m, penetration below 1 % of r.
 TEST(Engine, SphereRestsOnPlaneWithoutDrift) {
   auto m = base_model();
-  m->bodies.push_back(ground_plane());
+  m->bodies.push_back(test::ground_plane());
   World w(m);
   const double r = 0.005;
   const Vec3 x0(0, r, 0);
@@ -80,7 +73,7 @@ TEST(Engine, SphereRestsOnPlaneWithoutDrift) {
 double raft_acceleration(double theta, double mu, double* displacement) {
   auto m = base_model({mu});
   const Vec3 n(-std::sin(theta), std::cos(theta), 0.0);
-  m->bodies.push_back(ground_plane(n));
+  m->bodies.push_back(test::ground_plane(n));
   const double r = 0.005;
   m->shapes.push_back(make_particle_shape(
       {Vec3(-1, 0, -1), Vec3(1, 0, -1), Vec3(-1, 0, 1), Vec3(1, 0, 1)}, {1, 1, 1, 1}));
@@ -144,7 +137,7 @@ std::unique_ptr<World> raft_on(std::shared_ptr<Model> m, double r) {
 TEST(Engine, FlatRaftKeepsFourContactsAndStaysLevel) {
   const double r = 0.001;
   auto m = base_model({0.5});
-  m->bodies.push_back(ground_plane());
+  m->bodies.push_back(test::ground_plane());
   auto w = raft_on(m, r);
   w->step();
   const Contacts& c = w->contacts();
@@ -194,7 +187,7 @@ TEST(Engine, RaftInMeshCornerKeepsContactsOnBothFaces) {
 // (angular momentum about the contact point is conserved). Tolerance 1 %.
 TEST(Engine, SlidingSphereEndsRollingAtFiveSevenths) {
   auto m = base_model({0.3});
-  m->bodies.push_back(ground_plane());
+  m->bodies.push_back(test::ground_plane());
   World w(m);
   const double r = 0.01, v0 = 1.0;
   w.add_particle(0, r, 0, Vec3(0, r, 0), Quat::Identity(), Vec3(v0, 0, 0));
@@ -273,7 +266,7 @@ double apex_drop(double mu_spheres) {
   auto m = base_model({0.5, 0.5});
   m->materials = MaterialTable({{"ground", 2500, 0.5, 0}, {"sphere", 2500, 0.5, 0}},
                                {{1, 1, mu_spheres, std::nullopt}});
-  m->bodies.push_back(ground_plane());
+  m->bodies.push_back(test::ground_plane());
   World w(m);
   const double r = 0.005;
   const double s = 2 * r / std::sqrt(3.0);  // circumradius of the base triangle
@@ -295,7 +288,7 @@ TEST(Engine, TetrahedralPileCollapsesWithLittleFriction) { EXPECT_GT(apex_drop(0
 TEST(Engine, HeavySphereOnLightLayerStaysOnTop) {
   auto m = base_model({0.5, 0.5});
   m->materials = MaterialTable({{"light", 1000, 0.5, 0}, {"heavy", 1e6, 0.5, 0}}, {});
-  m->bodies.push_back(ground_plane());
+  m->bodies.push_back(test::ground_plane());
   m->solver.max_iterations = 100;
   m->solver.tolerance = 1e-8;
   World w(m);
@@ -473,7 +466,7 @@ TEST(Engine, ConeProjectionIsMoreauDecomposition) {
 // same residual tolerance. Counts, not times.
 int stack_iterations(SolverMethod method) {
   auto m = base_model({0.3});
-  m->bodies.push_back(ground_plane());
+  m->bodies.push_back(test::ground_plane());
   m->solver.method = method;
   m->solver.max_iterations = 5000;
   m->solver.tolerance = 1e-5;
@@ -532,9 +525,9 @@ std::vector<double> pile_state(int threads) {
   auto m = base_model({0.4});
   m->solver.max_iterations = 50;
   m->solver.tolerance = 1e-8;
-  m->bodies.push_back(ground_plane());
+  m->bodies.push_back(test::ground_plane());
   for (const Vec3& n : {Vec3(1, 0, 0), Vec3(-1, 0, 0), Vec3(0, 0, 1), Vec3(0, 0, -1)}) {
-    RigidBody wall = ground_plane(n);
+    RigidBody wall = test::ground_plane(n);
     wall.shape = geo::Plane{n, -0.03};
     m->bodies.push_back(wall);
   }

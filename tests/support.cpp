@@ -52,4 +52,12 @@ Outcome ces_sim(const std::string& args) {
   return o;
 }
 
+RigidBody ground_plane(const Vec3& normal, int material) {
+  RigidBody b;
+  b.name = "ground";
+  b.shape = geo::Plane{normal.normalized(), 0.0};
+  b.material = material;
+  return b;
+}
+
 }  // namespace ces::test

@@ -1,7 +1,9 @@
-// Helpers shared by the tests that write files or run the ces-sim binary.
+// Helpers shared by the tests: files, the ces-sim binary, model parts.
 #pragma once
 #include <filesystem>
 #include <string>
+
+#include "dynamics/model.hpp"
 
 namespace ces::test {
 
@@ -21,5 +23,8 @@ struct Outcome {
 // Runs the ces-sim binary with `args` (no quoting: keep paths free of
 // spaces); stdout and stderr are captured.
 Outcome ces_sim(const std::string& args);
+
+// A static plane through the origin named "ground".
+RigidBody ground_plane(const Vec3& normal = Vec3::UnitY(), int material = 0);
 
 }  // namespace ces::test
