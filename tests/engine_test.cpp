@@ -185,6 +185,28 @@ TEST(Engine, RaftInMeshCornerKeepsContactsOnBothFaces) {
 
 // A sphere launched sliding without spin ends rolling at 5/7 of its speed
 // (angular momentum about the contact point is conserved). Tolerance 1 %.
+// A sphere landing softly (0.02 m/s) on a plane while slipping at 0.75 m/s
+// (a grain dropped on the turning drum) should stay on the plane: with
+// restitution 0 nothing throws it up. KNOWN FAILURE: the cone complementarity
+// relaxation (Anitescu-Tasora) gives a sliding contact the normal velocity
+// mu |v_t|, so the sphere hops at 0.19 m/s and rises 1.86 mm (1.9 radii) at
+// the CES scenes' 0.5 ms step (the same at 1 ms). The exact Coulomb law needs the de Saxce
+// correction (normal bias + mu |v_t| of the solution, by fixed-point outer
+// iterations). Disabled until then; run with --gtest_also_run_disabled_tests.
+TEST(Engine, DISABLED_SphereLandingWithSlipStaysOnPlane) {
+  auto m = base_model({0.5}, 0.5e-3);
+  m->bodies.push_back(test::ground_plane());
+  World w(m);
+  const double r = 0.001;
+  w.add_particle(0, r, 0, Vec3(0, r, 0), Quat::Identity(), Vec3(0.75, -0.02, 0));
+  double top = 0.0;
+  for (int i = 0; i < 800; ++i) {
+    w.step();
+    top = std::max(top, w.particles().position[0].y() - r);
+  }
+  EXPECT_LT(top, 0.01 * r);
+}
+
 TEST(Engine, SlidingSphereEndsRollingAtFiveSevenths) {
   auto m = base_model({0.3});
   m->bodies.push_back(test::ground_plane());
