@@ -4,6 +4,8 @@
 #include <chrono>
 #include <cmath>
 
+#include "common/parallel.hpp"
+
 namespace ces {
 namespace {
 
@@ -132,7 +134,7 @@ void Collider::collide(const Model& model, const Particles& p, const Bodies& bod
   for (std::size_t i = 0; i < n; ++i)
     sphere_first_[i + 1] = sphere_first_[i] + model.shapes[std::size_t(p.shape[i])].centers.size();
   sphere_centre_.resize(sphere_first_[n]);
-#pragma omp parallel for schedule(static) if (n > 256)
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(n); ++s) {
     const auto i = std::size_t(s);
     const ParticleShape& shape = model.shapes[std::size_t(p.shape[i])];

@@ -3,10 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/parallel.hpp"
+
 namespace ces {
 namespace {
-
-constexpr std::ptrdiff_t kParallelMin = 256;  // below this, threads cost more than they save
 
 // A tangent basis that depends only on n, so frames are reproducible.
 void tangents(const Vec3& n, Vec3& t1, Vec3& t2) {

@@ -5,10 +5,11 @@
 #include <limits>
 #include <stdexcept>
 
+#include "common/parallel.hpp"
+
 namespace ces {
 namespace {
 
-constexpr std::ptrdiff_t kParallelMin = 256;  // below this, threads cost more than they save
 const double kTsuji = 2.0 * std::sqrt(5.0 / 6.0);
 
 // Dimensionless Hertz contact with Tsuji damping, x(0) = 0, x'(0) = 1 (RK4):

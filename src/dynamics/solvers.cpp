@@ -4,12 +4,12 @@
 #include <array>
 #include <cmath>
 
+#include "common/parallel.hpp"
 #include "dynamics/ccp.hpp"
 
 namespace ces {
 namespace {
 
-constexpr std::ptrdiff_t kParallelMin = 768;  // rows; below this, threads cost more than they save
 
 void copy(ConstSpan from, Span to) { std::copy(from.begin(), from.end(), to.begin()); }
 
@@ -125,7 +125,7 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
     theta = restart ? 1.0 : theta1;
     const double ca = restart ? 1.0 : 1.0 + beta, cb = restart ? 0.0 : beta;
     const auto rows = std::ptrdiff_t(m);
-#pragma omp parallel for schedule(static) if (rows > kParallelMin)
+#pragma omp parallel for schedule(static) if (rows > 3 * kParallelMin)
     for (std::ptrdiff_t j = 0; j < rows; ++j) {
       const auto i = std::size_t(j);
       if (improves) best[i] = x1[i];

@@ -6,6 +6,8 @@
 #include <chrono>
 #include <numeric>
 
+#include "common/parallel.hpp"
+
 namespace ces {
 namespace {
 
@@ -100,7 +102,7 @@ void World::build_solver_bodies() {
   SolverBodies& B = solver_bodies_;
   B.resize(np + nb);
   const Particles& p = particles_;
-#pragma omp parallel for schedule(static) if (np > 256)
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(np) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(np); ++s) {
     const auto i = std::size_t(s);
     B.x[i] = p.position[i];
@@ -212,7 +214,7 @@ void World::integrate(double h) {
   problem_.velocities(gamma_, v, w);
   const std::size_t np = particles_.size();
   Particles& p = particles_;
-#pragma omp parallel for schedule(static) if (np > 256)
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(np) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(np); ++s) {
     const auto i = std::size_t(s);
     p.velocity[i] = v[i];

@@ -9,6 +9,8 @@
 #include <string>
 #include <utility>
 
+#include "common/parallel.hpp"
+
 namespace ces::fields {
 namespace {
 
@@ -20,7 +22,6 @@ namespace {
 constexpr double kTouchFraction = 0.01;
 
 // Up to this many particles the loops stay serial, as World's own loops.
-constexpr std::size_t kParallelMin = 256;
 
 void require(bool ok, const std::string& what) {
   if (!ok) throw std::invalid_argument(what);
@@ -253,7 +254,7 @@ class ElectrostaticsStage {
     find_touches(contacts, world.bodies(), p, h);
     load_mixed(p);
     const auto n = std::ptrdiff_t(p.size());
-#pragma omp parallel for schedule(static) if (p.size() > kParallelMin)
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(p.size()) > kParallelMin)
     for (std::ptrdiff_t s = 0; s < n; ++s) update(p, std::size_t(s), contacts, h);
     store_mixed(p);
   }
@@ -301,7 +302,7 @@ class ElectrostaticsStage {
     if (!has_mixed_) return;
     metal_charge_.assign(p.size(), 0.0);
     const auto n = std::ptrdiff_t(p.size());
-#pragma omp parallel for schedule(static) if (p.size() > kParallelMin)
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(p.size()) > kParallelMin)
     for (std::ptrdiff_t s = 0; s < n; ++s) {
       const auto i = std::size_t(s);
       if (!is_mixed(material(p, i))) continue;
@@ -419,7 +420,7 @@ void add_drag_stage(World& world, DragSpec spec) {
   world.add_force_stage([spec, unit = unit_radii(world.model())](World& w, const Contacts&) {
     Particles& p = w.particles();
     const auto n = std::ptrdiff_t(p.size());
-#pragma omp parallel for schedule(static) if (p.size() > kParallelMin)
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(p.size()) > kParallelMin)
     for (std::ptrdiff_t s = 0; s < n; ++s) {
       const auto i = std::size_t(s);
       p.force[i] += drag_force(spec, p.velocity[i], particle_radius(p, i, unit));
