@@ -122,10 +122,10 @@ INSTANTIATE_TEST_SUITE_P(Scenes, Stress, ::testing::ValuesIn(kPassing),
 //    (was 21 % and 10 %);
 //  - the reference machine at 10 ms: overlap 2.2 radii (was 96), all of it
 //    into the drum (wall overlap above a radius: sphere centres inside it,
-//    on the drum's top; suspected: flakes turning by more than the kept
-//    manifold covers in a 10 ms step, not checked). Every pair within the
-//    |v| h envelope is still a contact (880 000 for 593 grains in the full
-//    version).
+//    on the drum's top): spheres of flakes spinning at 80-400 rad/s, which
+//    turn by radians within a step, mostly spheres that had no contact the
+//    step before. Every pair within the |v| h envelope is still a contact
+//    (880 000 for 593 grains in the full version).
 const StressCase kFailing[] = {
     {"mass_ratio_sphere", "mass_ratio_sphere.yaml", "", false, true},
     {"mass_ratio_plate", "mass_ratio_plate.yaml", "--set time.end=0.3s", false, true},
