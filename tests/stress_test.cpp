@@ -4,7 +4,10 @@
 //     particle whose state turns non-finite, as lost: "non-finite state");
 //   - the particle mass balance is exact;
 //   - no particle through a wall: each scene's domain ends at its walls'
-//     faces, so a grain through one is lost as "left domain";
+//     faces, so a grain through one is lost as "left domain"; and no
+//     sphere's centre past a wall's surface (overlap with a static or
+//     kinematic body above its radius: into the drum, where no domain
+//     face can see it);
 //   - penetration below 5 % of the radius, or (cases marked "reported")
 //     above it only with the summary's warning;
 //   - in passive scenes, no energy gain above 1 % of the peak kinetic energy
@@ -62,6 +65,8 @@ TEST_P(Stress, MeetsThePassCriteria) {
   const json& lost = s["balance"]["lost_by_reason"];
   EXPECT_EQ(lost["non-finite state"]["count"].get<int>(), 0) << "NaN or Inf";
   EXPECT_EQ(lost["left domain"]["count"].get<int>(), 0) << "particles through a wall";
+  EXPECT_LE(s["solver"]["max_wall_penetration_relative"].get<double>(), 1.0)
+      << "a sphere's centre past a wall's surface";
   const double penetration = s["solver"]["max_penetration_relative"].get<double>();
   if (c.penetration_reported && penetration > kPenetrationBound) {
     EXPECT_NE(s["warnings"].dump().find("overlapped by up to"), std::string::npos);
@@ -89,29 +94,41 @@ const StressCase kPassing[] = {
     {"dense_flow", "dense_flow.yaml",
      "--set 'feeds.pour.rate=20000 /s' --set feeds.pour.duration=0.05s --set time.end=0.25s",
      false, true},
+    // At the seed's own 0.1 ms / 30 iterations (the scene's comment says why).
+    {"drum_fine", "drum_fine.yaml", "--set feeds.top.duration=0.1s --set time.end=0.25s", false,
+     false},
+    // 10 m/s streams at 1 ms: nothing through the plate or the sheet (the
+    // wall guard, and body envelopes that allow for impacts with
+    // neighbours), no energy gained; grains overlap each other by up to 2.2
+    // radii (rebounding grains meet arriving ones 15 m/s apart, the solve
+    // stops at its cap), which the summary reports: "or reported" of issue
+    // 6's criterion. Their overlap with the wall is 0.
+    {"impact_plate", "impact_plate.yaml", "", true, true},
+    {"impact_mesh", "impact_mesh.yaml", "", true, true},
 };
 INSTANTIATE_TEST_SUITE_P(Scenes, Stress, ::testing::ValuesIn(kPassing),
                          [](const auto& info) { return std::string(info.param.name); });
 
 // Cases that fail their criteria at the scene's settings (docs/accuracy.md
-// has the measured figures; figures below on 2 cores, 2026-12-01). Disabled
-// rather than loosened: run them with --gtest_also_run_disabled_tests.
-//  - mass ratio sphere, 1 ms / 100 iterations: overlap 54 % of the radius,
-//    energy gain 104 % of the peak kinetic energy;
-//  - mass ratio plate: overlap 44 %, gain 10 %;
-//  - 0.1 mm grains on the drum at 130 rpm: overlap 5.9 radii (9.1 in the
-//    short version): into the drum;
-//  - 10 m/s streams: 372 of 400 grains through the plate, 372 through the
-//    mesh (a lone grain rebounds; at a 0.1 ms step 0 and 1 get through);
-//  - the reference machine at 10 ms: every pair within the |v| h envelope is
-//    a contact (880 000 for 593 grains), overlap 1000 radii (into the drum).
+// has the measured figures; figures below on 2 cores shared with other
+// jobs, 2026-12-01, short versions). Disabled rather than loosened: run them
+// with --gtest_also_run_disabled_tests.
+//  - mass ratio sphere, 1 ms / 100 iterations: overlap 103 % of the radius
+//    (the heavy sphere sinks into the light layer: the solve corrects the
+//    heavy body's impulse ~1000 times slower than a light grain's and stops
+//    at its cap), energy gain 0.5 % (was 104 %: a stopped iterate threw the
+//    sphere back up; now such impulses are scaled down, world.cpp);
+//  - mass ratio plate: overlap 34 %, gain 1.2 % of the peak kinetic energy
+//    (was 21 % and 10 %);
+//  - the reference machine at 10 ms: overlap 2.2 radii (was 96), all of it
+//    into the drum (wall overlap above a radius: sphere centres inside it,
+//    on the drum's top): spheres of flakes spinning at 80-400 rad/s, which
+//    turn by radians within a step, mostly spheres that had no contact the
+//    step before. Every pair within the |v| h envelope is still a contact
+//    (880 000 for 593 grains in the full version).
 const StressCase kFailing[] = {
     {"mass_ratio_sphere", "mass_ratio_sphere.yaml", "", false, true},
     {"mass_ratio_plate", "mass_ratio_plate.yaml", "--set time.end=0.3s", false, true},
-    {"drum_fine", "drum_fine.yaml", "--set feeds.top.duration=0.1s --set time.end=0.25s", false,
-     false},
-    {"impact_plate", "impact_plate.yaml", "", false, true},
-    {"impact_mesh", "impact_mesh.yaml", "", false, true},
     {"step_10ms", "step_10ms.yaml", "--set time.end=0.1s --set feeds.nozzle.duration=0.05s", true,
      false},
 };

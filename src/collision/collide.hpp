@@ -29,6 +29,7 @@ class Collider {
   std::vector<std::size_t> sphere_first_;  // particle i's spheres: [first[i], first[i + 1])
   std::vector<Vec3> sphere_centre_;        // in the world, this step
   std::vector<double> reach_, envelope_;
+  std::vector<double> kick_;  // what impacts with neighbours can add to the travel (m)
   std::vector<std::pair<std::int32_t, std::int32_t>> pairs_;
   std::vector<Contacts> chunks_;
   GridBroadphase grid_;

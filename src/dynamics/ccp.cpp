@@ -346,4 +346,46 @@ SolveStats CcpProblem::solve_pgs(Span x, const SolverSettings& s, SolverWorkspac
   return stats;
 }
 
+// The wall guard. A solve stopped at its iteration cap can leave a wall's
+// row far from satisfied: the step 1/L is set by the stiffest row (the
+// lightest grain, or a tangential row with its lever arm), so the normal row
+// of a heavy grain on a wall converges L m times slower, and a 10 m/s grain
+// kept 1/4 of the impulse that stops it and went through the plate. The
+// guard finishes those rows only, locally: per violated row, the normal
+// impulse that makes v_n + b = 0 for the particle alone (the wall does not
+// move under it). It only adds normal impulse, so the impulse stays in its
+// friction cone and what is reported is what was applied. It brings v_n up to
+// the row's own target -b: for an open gap (b = gap/h) that only removes
+// approaching velocity, so on a static wall it cannot add energy; the
+// targets above zero are the solver's own, a restitution rebound e |v_n|
+// and the push-out of an overlap at the recovery speed. Contacts between
+// particles, and with dynamic bodies, are left to the solver.
+std::size_t CcpProblem::guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
+                                    double tolerance, int sweeps) const {
+  const SolverBodies& B = *bodies_;
+  std::size_t corrections = 0;
+  for (int sweep = 0; sweep < sweeps; ++sweep) {
+    std::size_t made = 0;
+    for (std::size_t k = 0; k < a_.size(); ++k) {
+      const auto a = std::size_t(a_[k]), b = std::size_t(b_[k]);
+      if (B.inv_mass[a] != 0.0 || B.inv_mass[b] == 0.0) continue;
+      const Vec3 n = wide(n_[k]), ra = wide(ra_[k]), rb = wide(rb_[k]);
+      const double vn = n.dot(point_velocity(v, w, b_[k], rb) - point_velocity(v, w, a_[k], ra));
+      const double deficit = -bias_[k] - vn;
+      if (!(deficit > tolerance)) continue;  // (also skips a NaN)
+      const Vec3 c = rb.cross(n);
+      const double k_eff = B.inv_mass[b] + c.dot(B.inv_inertia[b] * c);
+      if (!(k_eff > 0.0)) continue;
+      const double d = deficit / k_eff;
+      x[3 * k] += d;
+      v[b] += B.inv_mass[b] * d * n;
+      w[b] += B.inv_inertia[b] * (d * c);
+      ++made;
+    }
+    corrections += made;
+    if (made == 0) break;
+  }
+  return corrections;
+}
+
 }  // namespace ces

@@ -111,6 +111,16 @@ class CcpProblem {
   void warm_start(const std::vector<ContactKey>& keys, const std::vector<ContactKey>& prev_keys,
                   const std::vector<Vec3>& prev_impulse, ConstSpan prev_x, Span x) const;
 
+  // The wall guard, after a solve (world.cpp): for each contact of a
+  // particle with a body of infinite mass (a wall, the drum, a mesh) whose
+  // row v_n + b >= 0 the solved impulses x leave violated by more than
+  // `tolerance` (m/s), adds the normal impulse that satisfies it, in up to
+  // `sweeps` Gauss-Seidel sweeps over those contacts, into x and into the
+  // velocities v, w (which must be those of x). Returns how many
+  // corrections it made. See ccp.cpp.
+  std::size_t guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w, double tolerance,
+                          int sweeps) const;
+
   // Projected Gauss-Seidel sweeps, in place (needs row access).
   SolveStats solve_pgs(Span x, const SolverSettings& s, SolverWorkspace& ws) const;
 

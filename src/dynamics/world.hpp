@@ -34,7 +34,16 @@ struct StepStats {
   SolveStats solver;
   double max_penetration = 0.0;           // m, at the start of the step
   double max_penetration_relative = 0.0;  // / radius of the smaller sphere
+  // The same over contacts with walls only (static and kinematic bodies):
+  // above 1, a sphere's centre is past a wall's surface (into the drum,
+  // through a plate).
+  double max_wall_penetration_relative = 0.0;
   double joint_drift = 0.0;               // m, at the start of the step
+  // When the solve stopped at its cap (World::finish_unconverged): the
+  // factor its impulses were scaled by so as not to create energy (1: kept),
+  // and the wall rows it left violated that the wall guard finished.
+  double impulse_scale = 1.0;
+  std::size_t wall_corrections = 0;
   // DEM only: the smallest particle's Rayleigh time (s; 0 under DVI), and
   // whether the step exceeds 20 % of it (explicit contact is then unreliable).
   double rayleigh_time = 0.0;
@@ -83,6 +92,7 @@ class World {
   void set_body_motion(double t);
   void build_solver_bodies();
   void dem_contacts(StepStats& stats);
+  void finish_unconverged(StepStats& stats);
   void integrate(double h);
   void remember_impulses();
   void reorder_in_space();

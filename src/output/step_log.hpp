@@ -24,6 +24,11 @@ struct SolverSummary {
   std::uint64_t steps_non_finite = 0;  // the solver met no finite residual (not in the percentiles)
   double max_penetration = 0.0;    // m
   double max_penetration_relative = 0.0;
+  double max_wall_penetration_relative = 0.0;  // contacts with static and kinematic bodies only
+  // Steps stopped at the cap whose impulses were scaled down so as not to
+  // create energy, and wall rows the wall guard finished (World::step).
+  std::uint64_t steps_impulses_scaled = 0;
+  std::uint64_t wall_corrections = 0;
   double max_joint_drift = 0.0;  // m
   // DEM: the smallest Rayleigh time met (s; inf: none, e.g. under DVI) and
   // the steps longer than 20 % of that step's Rayleigh time.

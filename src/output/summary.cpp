@@ -108,6 +108,9 @@ Json solver_json(const RunRecord& r) {
           {"residual_max_mps", s.residual_max},
           {"max_penetration_m", s.max_penetration},
           {"max_penetration_relative", s.max_penetration_relative},
+          {"max_wall_penetration_relative", s.max_wall_penetration_relative},
+          {"steps_impulses_scaled", s.steps_impulses_scaled},
+          {"wall_guard_corrections", s.wall_corrections},
           {"joint_drift_max_m", s.max_joint_drift},
           {"particles_max", s.max_particles},
           {"contacts_max", s.max_contacts}};
