@@ -388,4 +388,36 @@ std::size_t CcpProblem::guard_walls(Span x, std::vector<Vec3>& v, std::vector<Ve
   return corrections;
 }
 
+std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
+                                              double tolerance, int sweeps) const {
+  const SolverBodies& B = *bodies_;
+  std::size_t corrections = 0;
+  for (int sweep = 0; sweep < sweeps; ++sweep) {
+    std::size_t made = 0;
+    for (std::size_t k = 0; k < a_.size(); ++k) {
+      const auto a = std::size_t(a_[k]), b = std::size_t(b_[k]);
+      if (B.inv_mass[a] != 0.0 || B.inv_mass[b] == 0.0) continue;
+      const std::size_t i = 3 * k;
+      const double gn = x[i], gt2 = x[i + 1] * x[i + 1] + x[i + 2] * x[i + 2], mu = mu_[k];
+      if (!(gn > 0.0) || mu <= 0.0 || gt2 < mu * mu * gn * gn * (1.0 - 1e-6)) continue;  // not sliding
+      const Vec3 n = wide(n_[k]), ra = wide(ra_[k]), rb = wide(rb_[k]);
+      const double excess = n.dot(point_velocity(v, w, b_[k], rb) - point_velocity(v, w, a_[k], ra)) + bias_[k];
+      if (!(excess > tolerance)) continue;
+      // The impulse P and the normal velocity it gives b per unit of it.
+      const Vec3 P = n * gn + wide(t1_[k]) * x[i + 1] + wide(t2_[k]) * x[i + 2];
+      const Vec3 dv = B.inv_mass[b] * P, dw = B.inv_inertia[b] * rb.cross(P);
+      const double k_np = n.dot(dv + dw.cross(rb));
+      if (!(k_np > 0.0)) continue;
+      const double keep = std::max(0.0, 1.0 - excess / k_np);
+      for (std::size_t r = 0; r < 3; ++r) x[i + r] *= keep;
+      v[b] -= (1.0 - keep) * dv;
+      w[b] -= (1.0 - keep) * dw;
+      ++made;
+    }
+    corrections += made;
+    if (made == 0) break;
+  }
+  return corrections;
+}
+
 }  // namespace ces

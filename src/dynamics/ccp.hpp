@@ -121,6 +121,21 @@ class CcpProblem {
   std::size_t guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w, double tolerance,
                           int sweeps) const;
 
+  // The sliding lift of the relaxed cone complementarity, taken back on
+  // walls. The CCP gives a sliding contact the normal velocity mu |v_t|
+  // (Anitescu-Tasora), so a grain landing on a surface it slips against is
+  // thrown off it (at 0.19 m/s for 0.75 m/s of slip and mu 0.5) where the
+  // Coulomb law keeps it on: restitution 0 means no rebound. For each
+  // contact of a particle with a body of infinite mass whose impulse lies on
+  // the cone's surface (sliding) and whose row v_n + b exceeds 0 by more
+  // than `tolerance`, the impulse is scaled down, normal and friction alike
+  // (so it stays on the cone, friction mu times the normal impulse), until
+  // the row is 0: the Coulomb law's normal velocity. In up to `sweeps`
+  // Gauss-Seidel sweeps, into x and into v, w (which must be those of x).
+  // Returns how many corrections it made.
+  std::size_t release_sliding_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
+                                    double tolerance, int sweeps) const;
+
   // Projected Gauss-Seidel sweeps, in place (needs row access).
   SolveStats solve_pgs(Span x, const SolverSettings& s, SolverWorkspace& ws) const;
 

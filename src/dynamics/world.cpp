@@ -197,6 +197,7 @@ const StepStats& World::step() {
   // first (finish_unconverged).
   problem_.velocities(gamma_, solver_bodies_.v, solver_bodies_.w);
   if (!dem && !stats.solver.converged) finish_unconverged(stats);
+  if (!dem) release_sliding(stats);
   integrate(h);
   if (!dem) remember_impulses();
   time_ += h;
@@ -266,6 +267,16 @@ void World::finish_unconverged(StepStats& stats) {
     problem_.gradient(gamma_, g);
     problem_.residual(gamma_, g, stats.solver.residual, stats.solver.residual_max);
   }
+}
+
+// Sliding contacts with walls get the Coulomb law's normal velocity, not the
+// relaxed cone's mu |v_t| lift (CcpProblem::release_sliding_walls).
+void World::release_sliding(StepStats& stats) {
+  std::vector<Vec3>& v = solver_bodies_.v;
+  std::vector<Vec3>& w = solver_bodies_.w;
+  stats.sliding_releases = problem_.release_sliding_walls(
+      gamma_, v, w, kGuardFactor * model_->solver.tolerance, kGuardSweeps);
+  if (stats.sliding_releases > 0) problem_.velocities(gamma_, v, w);  // exactly those of x
 }
 
 void World::dem_contacts(StepStats& stats) {

@@ -44,6 +44,8 @@ struct StepStats {
   // and the wall rows it left violated that the wall guard finished.
   double impulse_scale = 1.0;
   std::size_t wall_corrections = 0;
+  // Sliding wall contacts whose relaxed-cone lift was taken back (every step).
+  std::size_t sliding_releases = 0;
   // DEM only: the smallest particle's Rayleigh time (s; 0 under DVI), and
   // whether the step exceeds 20 % of it (explicit contact is then unreliable).
   double rayleigh_time = 0.0;
@@ -93,6 +95,7 @@ class World {
   void build_solver_bodies();
   void dem_contacts(StepStats& stats);
   void finish_unconverged(StepStats& stats);
+  void release_sliding(StepStats& stats);
   void integrate(double h);
   void remember_impulses();
   void reorder_in_space();
