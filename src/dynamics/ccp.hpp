@@ -130,7 +130,9 @@ class CcpProblem {
   // the cone's surface (sliding) and whose row v_n + b exceeds 0 by more
   // than `tolerance`, the impulse is scaled down, normal and friction alike
   // (so it stays on the cone, friction mu times the normal impulse), until
-  // the row is 0: the Coulomb law's normal velocity. In up to `sweeps`
+  // the row is 0: the Coulomb law's normal velocity. Only for bodies whose
+  // contacts are all with walls (a grain on the drum, not in a pile), whose
+  // wall rows it also keeps from going below 0. In up to `sweeps`
   // Gauss-Seidel sweeps, into x and into v, w (which must be those of x).
   // Returns how many corrections it made.
   std::size_t release_sliding_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
@@ -162,6 +164,7 @@ class CcpProblem {
   ContactAdjacency adj_;  // bodies with finite mass
   double diag_max_ = 1.0;
   mutable std::vector<Vec3> dv_, dw_, impulse_;
+  mutable std::vector<unsigned char> coupled_;  // release_sliding_walls' scratch
 };
 
 SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);
