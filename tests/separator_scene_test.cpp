@@ -381,11 +381,15 @@ double range_5_95_se(const std::vector<double>& x) {
 // Measure: the 5-95 % range of the copper landing x (the standard deviation
 // reacts to one stray particle, the interquartile range misses the tail,
 // which is where the feed rate acts), with a bootstrap standard error (1000
-// resamples). Asserted: at 40 g/s it exceeds 5 g/s by at least 1.5 combined
-// standard errors. Measured on these feeds (seeds 1-5, README): 5 g/s
-// 21.8-28.7 mm (62-85 copper particles), 40 g/s 45.9-67.1 mm (108-123),
-// the step 2.0-7.0 standard errors. Nearly all the copper must have landed
-// (at least 90 %; measured 91.5-100 %): the slow particles are the tail.
+// resamples). Asserted: from 5 to 40 g/s it widens by more than 10 mm and by
+// more than one combined standard error. Measured on these feeds over seeds
+// 1-8 (README): 5 g/s 21.8-28.7 mm (62-85 copper particles), 40 g/s
+// 40.4-69.8 mm (101-123), the step 13.8-45.7 mm and 1.1-7.0 standard errors
+// (7.0 at seed 1, which the test runs; 2 or more at 6 seeds of 8, so 2 is
+// not asserted: with about 110 copper particles at 40 g/s the standard
+// error is 4-14 mm, and more would cost CI minutes). Nearly all the copper
+// must have landed (at least 90 %; measured 91.5-100 %): the slow particles
+// are the tail.
 //
 // Not asserted: the step from 5 to 20 g/s. Full runs (0.5 s of feed, about
 // 230 copper particles at 20 g/s) widen monotonically at every seed tried,
@@ -423,7 +427,8 @@ TEST(SeparatorScene, CopperLandingWidensWithFeedRate) {
                 cu.size(), 1e3 * spread.back(), 1e3 * error.back());
   }
   ASSERT_EQ(spread.size(), 2u);
-  EXPECT_GT(spread[1] - spread[0], 1.5 * std::hypot(error[0], error[1]));
+  EXPECT_GT(spread[1] - spread[0], 0.010);
+  EXPECT_GT(spread[1] - spread[0], std::hypot(error[0], error[1]));
 }
 
 }  // namespace
