@@ -2,8 +2,8 @@
 // compile to the field model, charging zones, electrical materials, drag
 // and particle shapes; the runner installs only what a scene asks for; the
 // field picture is the field model's; a short feed of the reference machine
-// separates copper from FR-4 with an exact balance; and the landing spread
-// grows with the feed rate (the seed's Figure 10).
+// separates copper from FR-4 with an exact balance; and the copper landing
+// widens with the feed rate (the seed's Figure 10).
 //
 // Scenes run in-process on one thread, so two tests under ctest -j2 do not
 // fight over the two cores.
@@ -11,9 +11,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <numbers>
+#include <random>
 #include <sstream>
 
 #include "feed/shapes.hpp"
@@ -343,36 +345,92 @@ TEST(SeparatorScene, ShortFeedSeparatesCopperFromFr4) {
   EXPECT_GE(brushed / fr4_near, 0.75);
 }
 
-// The feed-rate scenes (the seed's Figure 10) on small feeds: 0.05 s at 5,
-// 20 and 40 g/s. Each balances exactly, and copper lands clear of FR-4
-// (medians more than 50 mm apart) at every rate.
+// Quantile p of x, linear between order statistics (numpy's default).
+double quantile(std::vector<double> x, double p) {
+  std::sort(x.begin(), x.end());
+  const double h = (double(x.size()) - 1.0) * p;
+  const std::size_t i = std::size_t(h);
+  if (i + 1 >= x.size()) return x.back();
+  return x[i] + (h - double(i)) * (x[i + 1] - x[i]);
+}
+
+// The spread of a landing distribution: the range holding its middle 90 %.
+double range_5_95(const std::vector<double>& x) {
+  return quantile(x, 0.95) - quantile(x, 0.05);
+}
+
+// Bootstrap standard error of range_5_95 (1000 resamples, fixed stream).
+double range_5_95_se(const std::vector<double>& x) {
+  std::mt19937_64 rng(20261201);
+  std::vector<double> values, sample(x.size());
+  for (int b = 0; b < 1000; ++b) {
+    for (double& s : sample) s = x[rng() % x.size()];
+    values.push_back(range_5_95(sample));
+  }
+  double mean = 0.0, var = 0.0;
+  for (double v : values) mean += v / double(values.size());
+  for (double v : values) var += (v - mean) * (v - mean) / double(values.size() - 1);
+  return std::sqrt(var);
+}
+
+// The seed's Figure 10 on small feeds: the copper landing widens with the
+// feed rate. The feed-rate scenes drop the mix at rest from a feeder's lip
+// at the top of the drum, which must accelerate it by friction; in a dense
+// layer, particles lying on others (friction 0.2 instead of the drum's 0.5)
+// leave the drum slower and land short, so the copper landing grows a low
+// tail (copper thrown into the middling) as the rate grows.
 //
-// Not asserted: that the copper landing spread grows with the feed rate, as
-// the seed's Figure 10 shows. This model does not give that trend robustly.
-// Full runs (0.5 s of feed, 0.5 ms steps): copper standard deviation 19.1,
-// 18.6, 20.2 mm and interquartile range 21.2, 18.6, 19.9 mm at 5, 20, 40
-// g/s. At 1 ms steps they did widen (17.8, 23.9, 34.4 mm), but with the
-// solver's error: the worst overlap grew from 2.9 to 11 particle radii with
-// the feed rate. On small feeds the few copper particles (11 to 44) make any
-// spread a coin toss. Nor does it widen with the size, shape and nozzle
-// variance taken out (copper only, 1 mm spheres, 10 x 10 or 10 x 4 mm slot,
-// no velocity spread, 0.05 s): copper standard deviations 1.3-2.1, 1.8-2.6
-// and 2.0-2.3 mm at 5, 20 and 40 g/s over seeds, monotone in two runs of
-// five (README, Feed rate). Particles riding the drum move together and
-// meet slowly; an asserted trend would pass or fail by the seed.
-TEST(SeparatorScene, FeedRatesSeparateAlike) {
-  for (const char* rate : {"5", "20", "40"}) {
-    SCOPED_TRACE(std::string(rate) + " g/s");
-    const Simulation sim = load(kScenes + "ces_feedrate/feed_" + rate + "gps.yaml",
-                                {{"feeds.nozzle.duration", "0.05 s"}, {"time.end", "0.6 s"}});
-    const fs::path dir = run_scene(sim, std::string("feed_") + rate);
+// Measure: the 5-95 % range of the copper landing x (the standard deviation
+// reacts to one stray particle, the interquartile range misses the tail,
+// which is where the feed rate acts), with a bootstrap standard error (1000
+// resamples). Asserted: from 5 to 40 g/s it widens by more than 10 mm and by
+// more than one combined standard error. Measured on these feeds over seeds
+// 1-8 (README): 5 g/s 21.8-28.7 mm (62-85 copper particles), 40 g/s
+// 40.4-69.8 mm (101-123), the step 13.8-45.7 mm and 1.1-7.0 standard errors
+// (7.0 at seed 1, which the test runs; 2 or more at 6 seeds of 8, so 2 is
+// not asserted: with about 110 copper particles at 40 g/s the standard
+// error is 4-14 mm, and more would cost CI minutes). Nearly all the copper
+// must have landed (at least 90 %; measured 91.5-100 %): the slow particles
+// are the tail.
+//
+// Not asserted: the step from 5 to 20 g/s. Full runs (0.5 s of feed, about
+// 230 copper particles at 20 g/s) widen monotonically at every seed tried,
+// by 1.5-2.9 standard errors from 5 to 20 g/s (README); on a feed short
+// enough for CI the layer under the lip is barely formed, the step is within
+// one standard error at 3 seeds of 5, and the order reverses at one. The
+// 20 g/s scene runs here on a tiny feed for its balance and separation.
+TEST(SeparatorScene, CopperLandingWidensWithFeedRate) {
+  struct Feed {
+    const char* rate;
+    const char* duration;
+    const char* end;
+  };
+  std::vector<double> spread, error;
+  for (const Feed& feed : {Feed{"5", "0.6 s", "1.2 s"}, Feed{"20", "0.05 s", "0.65 s"},
+                           Feed{"40", "0.12 s", "0.75 s"}}) {
+    SCOPED_TRACE(std::string(feed.rate) + " g/s");
+    const Simulation sim =
+        load(kScenes + "ces_feedrate/feed_" + feed.rate + "gps.yaml",
+             {{"feeds.nozzle.duration", feed.duration}, {"time.end", feed.end}});
+    const fs::path dir = run_scene(sim, std::string("feed_") + feed.rate);
     const auto summary = nlohmann::json::parse(read_text(dir / "summary.json"));
     EXPECT_TRUE(summary["balance"]["exact"].get<bool>());
     const std::vector<Landing> all = landings(dir);
     const std::vector<double> cu = positions(all, "copper"), fr4 = positions(all, "fr4");
     ASSERT_GE(cu.size(), 5u);
     EXPECT_GT(median(cu) - median(fr4), 0.05);
+    if (std::string(feed.rate) == "20") continue;
+    const int cu_fed = summary["balance"]["materials"]["copper"]["fed"]["count"];
+    ASSERT_GE(cu.size(), 50u);
+    EXPECT_GE(double(cu.size()), 0.9 * cu_fed) << "copper still on the drum";
+    spread.push_back(range_5_95(cu));
+    error.push_back(range_5_95_se(cu));
+    std::printf("[ feed rate ] %s g/s: %zu copper, 5-95 %% range %.1f +- %.1f mm\n", feed.rate,
+                cu.size(), 1e3 * spread.back(), 1e3 * error.back());
   }
+  ASSERT_EQ(spread.size(), 2u);
+  EXPECT_GT(spread[1] - spread[0], 0.010);
+  EXPECT_GT(spread[1] - spread[0], std::hypot(error[0], error[1]));
 }
 
 }  // namespace
