@@ -111,6 +111,7 @@ Json solver_json(const RunRecord& r) {
           {"max_wall_penetration_relative", s.max_wall_penetration_relative},
           {"steps_impulses_scaled", s.steps_impulses_scaled},
           {"wall_guard_corrections", s.wall_corrections},
+          {"sliding_releases", s.sliding_releases},
           {"joint_drift_max_m", s.max_joint_drift},
           {"particles_max", s.max_particles},
           {"contacts_max", s.max_contacts}};
