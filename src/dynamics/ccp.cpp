@@ -389,55 +389,49 @@ std::size_t CcpProblem::guard_walls(Span x, std::vector<Vec3>& v, std::vector<Ve
 }
 
 std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
-                                              double tolerance, int sweeps) const {
+                                              double tolerance) const {
   const SolverBodies& B = *bodies_;
-  // Only bodies that touch nothing else movable: in a pile the lift is
-  // shared with the neighbours, and taking it back from one grain alone
-  // pushed the ones above into it (46 % of r in the friction-1 pile).
-  coupled_.assign(B.inv_mass.size(), 0);
-  for (std::size_t k = 0; k < a_.size(); ++k) {
-    const auto a = std::size_t(a_[k]), b = std::size_t(b_[k]);
-    if (B.inv_mass[a] != 0.0 && B.inv_mass[b] != 0.0) coupled_[a] = coupled_[b] = 1;
-  }
-  std::size_t corrections = 0;
-  for (int sweep = 0; sweep < sweeps; ++sweep) {
-    std::size_t made = 0;
-    for (std::size_t k = 0; k < a_.size(); ++k) {
-      const auto a = std::size_t(a_[k]), b = std::size_t(b_[k]);
-      if (B.inv_mass[a] != 0.0 || B.inv_mass[b] == 0.0 || coupled_[b]) continue;
-      const std::size_t i = 3 * k;
-      const Vec3 n = wide(n_[k]), ra = wide(ra_[k]), rb = wide(rb_[k]);
-      const double row = n.dot(point_velocity(v, w, b_[k], rb) - point_velocity(v, w, a_[k], ra)) + bias_[k];
-      Vec3 dP;  // the impulse added to b
-      if (row < -tolerance) {
-        // Another wall contact of the same body was released into this
-        // one: the normal impulse that restores its row.
-        const Vec3 c = rb.cross(n);
-        const double k_nn = B.inv_mass[b] + c.dot(B.inv_inertia[b] * c);
-        if (!(k_nn > 0.0)) continue;
-        x[i] -= row / k_nn;
-        dP = -row / k_nn * n;
-      } else {
-        const double gn = x[i], gt2 = x[i + 1] * x[i + 1] + x[i + 2] * x[i + 2], mu = mu_[k];
-        if (!(row > tolerance) || !(gn > 0.0) || mu <= 0.0 || gt2 < mu * mu * gn * gn * (1.0 - 1e-6))
-          continue;  // at its target, or not sliding
-        // Scale the impulse P down until the row is 0.
-        const Vec3 P = n * gn + wide(t1_[k]) * x[i + 1] + wide(t2_[k]) * x[i + 2];
-        const double k_np =
-            n.dot(B.inv_mass[b] * P + (B.inv_inertia[b] * rb.cross(P)).cross(rb));
-        if (!(k_np > 0.0)) continue;
-        const double keep = std::max(0.0, 1.0 - row / k_np);
-        for (std::size_t r = 0; r < 3; ++r) x[i + r] *= keep;
-        dP = -(1.0 - keep) * P;
-      }
-      v[b] += B.inv_mass[b] * dP;
-      w[b] += B.inv_inertia[b] * rb.cross(dP);
-      ++made;
+  std::size_t released = 0;
+  for (std::size_t b = 0; b < B.inv_mass.size(); ++b) {
+    const std::uint32_t first = adj_.offset[b], last = adj_.offset[b + 1];
+    if (first == last) continue;
+    // The body's contacts: all with walls (it is their B side), every one
+    // pressing is sliding, and at least one lifts off by more than the
+    // tolerance. Then dv, dw: what taking all its impulses away would do.
+    bool eligible = true, lifting = false;
+    Vec3 dv = Vec3::Zero(), dw = Vec3::Zero();
+    for (std::uint32_t e = first; e < last && eligible; ++e) {
+      const std::size_t k = adj_.entry[e] >> 1, i = 3 * k;
+      const double gn = x[i], gt2 = x[i + 1] * x[i + 1] + x[i + 2] * x[i + 2], mu = mu_[k];
+      eligible = (adj_.entry[e] & 1) && B.inv_mass[std::size_t(a_[k])] == 0.0 &&
+                 (gn <= 0.0 || (mu > 0.0 && gt2 >= mu * mu * gn * gn * (1.0 - 1e-6)));
+      if (!eligible || gn <= 0.0) continue;
+      const Vec3 P = wide(n_[k]) * gn + wide(t1_[k]) * x[i + 1] + wide(t2_[k]) * x[i + 2];
+      dv -= B.inv_mass[b] * P;
+      dw -= B.inv_inertia[b] * wide(rb_[k]).cross(P);
+      lifting = lifting || row_of(k, v, w) > tolerance;
     }
-    corrections += made;
-    if (made == 0) break;
+    if (!eligible || !lifting) continue;
+    // The largest share t of them to take away with every row staying >= 0.
+    double t = 1.0;
+    for (std::uint32_t e = first; e < last; ++e) {
+      const std::size_t k = adj_.entry[e] >> 1;
+      const double rate = wide(n_[k]).dot(dv + dw.cross(wide(rb_[k])));
+      if (rate < 0.0) t = std::min(t, std::max(0.0, row_of(k, v, w)) / -rate);
+    }
+    if (!(t > 0.0)) continue;
+    for (std::uint32_t e = first; e < last; ++e)
+      for (std::size_t r = 0; r < 3; ++r) x[3 * (adj_.entry[e] >> 1) + r] *= 1.0 - t;
+    v[b] += t * dv;
+    w[b] += t * dw;
+    ++released;
   }
-  return corrections;
+  return released;
+}
+
+double CcpProblem::row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const {
+  return wide(n_[k]).dot(point_velocity(v, w, b_[k], wide(rb_[k])) - point_velocity(v, w, a_[k], wide(ra_[k]))) +
+         bias_[k];
 }
 
 }  // namespace ces

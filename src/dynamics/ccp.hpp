@@ -125,18 +125,18 @@ class CcpProblem {
   // walls. The CCP gives a sliding contact the normal velocity mu |v_t|
   // (Anitescu-Tasora), so a grain landing on a surface it slips against is
   // thrown off it (at 0.19 m/s for 0.75 m/s of slip and mu 0.5) where the
-  // Coulomb law keeps it on: restitution 0 means no rebound. For each
-  // contact of a particle with a body of infinite mass whose impulse lies on
-  // the cone's surface (sliding) and whose row v_n + b exceeds 0 by more
-  // than `tolerance`, the impulse is scaled down, normal and friction alike
-  // (so it stays on the cone, friction mu times the normal impulse), until
-  // the row is 0: the Coulomb law's normal velocity. Only for bodies whose
-  // contacts are all with walls (a grain on the drum, not in a pile), whose
-  // wall rows it also keeps from going below 0. In up to `sweeps`
-  // Gauss-Seidel sweeps, into x and into v, w (which must be those of x).
-  // Returns how many corrections it made.
+  // Coulomb law keeps it on: restitution 0 means no rebound. For each body
+  // whose contacts are all with bodies of infinite mass (a grain on the
+  // drum, not one in a pile: there the lift is shared with the neighbours),
+  // whose pressing contacts all slide and one of whose rows exceeds its
+  // target by more than `tolerance`: its contact impulses are scaled down
+  // together (each stays on its cone, friction mu times its normal impulse)
+  // by the largest share that leaves every one of its rows at or above its
+  // target. A flat contact comes to rest on its target, as under Coulomb.
+  // Into x and into v, w (which must be those of x). Returns the bodies
+  // released.
   std::size_t release_sliding_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
-                                    double tolerance, int sweeps) const;
+                                    double tolerance) const;
 
   // Projected Gauss-Seidel sweeps, in place (needs row access).
   SolveStats solve_pgs(Span x, const SolverSettings& s, SolverWorkspace& ws) const;
@@ -153,6 +153,8 @@ class CcpProblem {
   void scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
   void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, Span y) const;
   double block_bound(std::size_t k) const;
+  // Contact k's normal row v_n + b at velocities v, w.
+  double row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const;
 
   const SolverBodies* bodies_ = nullptr;
   // Contacts, structure of arrays.
@@ -164,7 +166,6 @@ class CcpProblem {
   ContactAdjacency adj_;  // bodies with finite mass
   double diag_max_ = 1.0;
   mutable std::vector<Vec3> dv_, dw_, impulse_;
-  mutable std::vector<unsigned char> coupled_;  // release_sliding_walls' scratch
 };
 
 SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);

@@ -274,8 +274,8 @@ void World::finish_unconverged(StepStats& stats) {
 void World::release_sliding(StepStats& stats) {
   std::vector<Vec3>& v = solver_bodies_.v;
   std::vector<Vec3>& w = solver_bodies_.w;
-  stats.sliding_releases = problem_.release_sliding_walls(
-      gamma_, v, w, kGuardFactor * model_->solver.tolerance, kGuardSweeps);
+  stats.sliding_releases =
+      problem_.release_sliding_walls(gamma_, v, w, kGuardFactor * model_->solver.tolerance);
   if (stats.sliding_releases > 0) problem_.velocities(gamma_, v, w);  // exactly those of x
 }
 
