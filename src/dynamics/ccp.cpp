@@ -412,14 +412,18 @@ std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std:
       lifting = lifting || row_of(k, v, w) > tolerance;
     }
     if (!eligible || !lifting) continue;
-    // The largest share t of them to take away with every row staying >= 0.
+    // The largest share t of them to take away with every row staying >= 0,
+    // if taking them away lowers a lifting row at all (friction's torque
+    // can make it rise instead).
     double t = 1.0;
+    bool lowers = false;
     for (std::uint32_t e = first; e < last; ++e) {
       const std::size_t k = adj_.entry[e] >> 1;
-      const double rate = wide(n_[k]).dot(dv + dw.cross(wide(rb_[k])));
-      if (rate < 0.0) t = std::min(t, std::max(0.0, row_of(k, v, w)) / -rate);
+      const double rate = wide(n_[k]).dot(dv + dw.cross(wide(rb_[k]))), row = row_of(k, v, w);
+      if (rate < 0.0) t = std::min(t, std::max(0.0, row) / -rate);
+      lowers = lowers || (rate < 0.0 && row > tolerance && x[3 * k] > 0.0);
     }
-    if (!(t > 0.0)) continue;
+    if (!lowers || !(t > 0.0)) continue;
     for (std::uint32_t e = first; e < last; ++e)
       for (std::size_t r = 0; r < 3; ++r) x[3 * (adj_.entry[e] >> 1) + r] *= 1.0 - t;
     v[b] += t * dv;

@@ -10,7 +10,6 @@
 namespace ces {
 namespace {
 
-
 void copy(ConstSpan from, Span to) { std::copy(from.begin(), from.end(), to.begin()); }
 
 double dot(ConstSpan a, ConstSpan b) {

@@ -30,7 +30,7 @@ Quat advance(const Quat& q, const Vec3& w, double h) {
 
 // The wall guard acts on rows violated by more than this many solver
 // tolerances (m/s), in at most this many sweeps (a particle in a corner
-// touches two or three walls).
+// touches two or three walls); the sliding release on rows lifting by more.
 constexpr double kGuardFactor = 10.0;
 constexpr int kGuardSweeps = 4;
 
@@ -219,40 +219,44 @@ const StepStats& World::step() {
 //
 // 1. Energy. The CCP minimises f(x) = 1/2 x.Nx + r.x over the cones, and
 //    f(x) = (kinetic energy after - kinetic energy of the free motion) + b.x
-//    (M-norm, b the rows' bias): with f <= 0 the step cannot gain more
-//    kinetic energy than -b.x, what the bias allows (the push-out of an
-//    overlap at the recovery speed, a restitution rebound); the exact
+//    + the work of x on moving kinematic bodies (M-norm, b the rows' bias):
+//    with f <= 0 the step cannot gain more kinetic energy than -b.x, what
+//    the bias allows (the push-out of an overlap at the recovery speed, a
+//    restitution rebound), plus what a moving wall does; the exact
 //    solution has f <= f(0) = 0. A stopped iterate need not: on the mass
 //    ratio 1:1000 scene the warm-started impulses, which the solver corrects
 //    along the heavy sphere's direction 1000 times slower than along a light
 //    grain's, threw the sphere back up at 0.41 m/s (4 x the recovery
 //    speed), a gain of 104 % of the peak kinetic energy. So if f(x) > 0,
-//    x is replaced by the best point a x on the segment [0, x] (an exact line
-//    search: f is quadratic along it; a x stays in the cones, and bilateral
-//    rows' bounds contain 0), which has f < 0.
+//    the contact impulses are replaced by the best point a x on the segment
+//    from 0 to them, the joints' impulses held (an exact line search: f is
+//    quadratic along it; a x stays in the cones), which has f <= 0.
 // 2. Walls. The wall guard (CcpProblem::guard_walls) finishes the rows of
 //    walls the iterate leaves violated, so no particle goes through one.
 //
-// The residual reported is then that of the impulses applied.
+// The residual reported is then that of these impulses (the sliding
+// release after it changes them again, on purpose: not measured).
 void World::finish_unconverged(StepStats& stats) {
   const Model& m = *model_;
   std::vector<Vec3>& v = solver_bodies_.v;
   std::vector<Vec3>& w = solver_bodies_.w;
-  const std::size_t rows = gamma_.size();
-  // The solver's buffers are free after the solve.
-  const Span zero = workspace_.take(5, rows), r = workspace_.take(6, rows), g = workspace_.take(7, rows);
-  std::fill(zero.begin(), zero.end(), 0.0);
-  problem_.gradient(zero, r);    // r = N 0 + r
+  const std::size_t rows = gamma_.size(), contact_rows = 3 * problem_.contact_count();
+  // The solver's buffers are free after the solve. The line search runs
+  // over the contacts' rows only: joints and motors keep their impulses.
+  const Span base = workspace_.take(5, rows), r = workspace_.take(6, rows), g = workspace_.take(7, rows);
+  std::copy(gamma_.begin(), gamma_.end(), base.begin());
+  std::fill(base.begin(), base.begin() + std::ptrdiff_t(contact_rows), 0.0);
+  problem_.gradient(base, r);    // at the joints' impulses alone
   problem_.gradient(gamma_, g);  // N x + r
   double rx = 0.0, xnx = 0.0;    // in row order: the same bits for any thread count
-  for (std::size_t i = 0; i < rows; ++i) {
+  for (std::size_t i = 0; i < contact_rows; ++i) {
     rx += r[i] * gamma_[i];
     xnx += gamma_[i] * (g[i] - r[i]);
   }
   bool changed = false;
   if (0.5 * xnx + rx > 0.0) {
     const double scale = xnx > 0.0 ? std::clamp(-rx / xnx, 0.0, 1.0) : 0.0;
-    for (double& x : gamma_) x *= scale;
+    for (std::size_t i = 0; i < contact_rows; ++i) gamma_[i] *= scale;
     stats.impulse_scale = scale;
     problem_.velocities(gamma_, v, w);
     changed = true;

@@ -44,7 +44,8 @@ struct StepStats {
   // and the wall rows it left violated that the wall guard finished.
   double impulse_scale = 1.0;
   std::size_t wall_corrections = 0;
-  // Sliding wall contacts whose relaxed-cone lift was taken back (every step).
+  // Bodies whose wall impulses were scaled down to take the relaxed cone's
+  // lift back (every step; CcpProblem::release_sliding_walls).
   std::size_t sliding_releases = 0;
   // DEM only: the smallest particle's Rayleigh time (s; 0 under DVI), and
   // whether the step exceeds 20 % of it (explicit contact is then unreliable).

@@ -21,8 +21,6 @@ namespace {
 // touched yet.
 constexpr double kTouchFraction = 0.01;
 
-// Up to this many particles the loops stay serial, as World's own loops.
-
 void require(bool ok, const std::string& what) {
   if (!ok) throw std::invalid_argument(what);
 }

@@ -29,7 +29,7 @@ struct SolverSummary {
   // create energy, and wall rows the wall guard finished (World::step).
   std::uint64_t steps_impulses_scaled = 0;
   std::uint64_t wall_corrections = 0;
-  std::uint64_t sliding_releases = 0;  // sliding wall contacts whose lift was taken back
+  std::uint64_t sliding_releases = 0;  // bodies released from their lift, summed over steps
   double max_joint_drift = 0.0;  // m
   // DEM: the smallest Rayleigh time met (s; inf: none, e.g. under DVI) and
   // the steps longer than 20 % of that step's Rayleigh time.

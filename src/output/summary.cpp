@@ -256,7 +256,7 @@ void add_warnings(RunRecord& r) {
   if (s.steps_non_finite > 0)
     warn(std::to_string(s.steps_non_finite) + " of " + std::to_string(s.solved_steps) +
          " solved steps met no finite solver residual (NaN or inf in the contact problem): "
-         "those steps kept their warm start");
+         "those steps kept their warm start, apart from the safeguards on finite rows");
   if (s.max_penetration_relative > 0.1)
     warn("particles overlapped by up to " +
          std::to_string(int(100.0 * s.max_penetration_relative)) +
