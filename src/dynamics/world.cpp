@@ -193,10 +193,9 @@ const StepStats& World::step() {
   stats.seconds.solve = seconds_since(t0);
 
   t0 = Clock::now();
-  // The velocities of the impulses; a solve stopped at its cap is made safe
-  // first (finish_unconverged).
+  // The velocities of the impulses, made safe first (make_safe).
   problem_.velocities(gamma_, solver_bodies_.v, solver_bodies_.w);
-  if (!dem && !stats.solver.converged) finish_unconverged(stats);
+  if (!dem) make_safe(stats);
   if (!dem) release_sliding(stats);
   integrate(h);
   if (!dem) remember_impulses();
@@ -215,7 +214,8 @@ const StepStats& World::step() {
 }
 
 // A solve stopped at its iteration cap returns impulses that may be far from
-// the solution, in two ways that matter (docs/accuracy.md, stress table):
+// the solution, in two ways that matter (docs/accuracy.md, stress table);
+// the second is checked on every step:
 //
 // 1. Energy. The CCP minimises f(x) = 1/2 x.Nx + r.x over the cones, and
 //    f(x) = (kinetic energy after - kinetic energy of the free motion) + b.x
@@ -236,31 +236,37 @@ const StepStats& World::step() {
 //
 // The residual reported is then that of these impulses (the sliding
 // release after it changes them again, on purpose: not measured).
-void World::finish_unconverged(StepStats& stats) {
+void World::make_safe(StepStats& stats) {
   const Model& m = *model_;
   std::vector<Vec3>& v = solver_bodies_.v;
   std::vector<Vec3>& w = solver_bodies_.w;
   const std::size_t rows = gamma_.size(), contact_rows = 3 * problem_.contact_count();
-  // The solver's buffers are free after the solve. The line search runs
-  // over the contacts' rows only: joints and motors keep their impulses.
-  const Span base = workspace_.take(5, rows), r = workspace_.take(6, rows), g = workspace_.take(7, rows);
-  std::copy(gamma_.begin(), gamma_.end(), base.begin());
-  std::fill(base.begin(), base.begin() + std::ptrdiff_t(contact_rows), 0.0);
-  problem_.gradient(base, r);    // at the joints' impulses alone
-  problem_.gradient(gamma_, g);  // N x + r
-  double rx = 0.0, xnx = 0.0;    // in row order: the same bits for any thread count
-  for (std::size_t i = 0; i < contact_rows; ++i) {
-    rx += r[i] * gamma_[i];
-    xnx += gamma_[i] * (g[i] - r[i]);
-  }
+  // The solver's buffers are free after the solve.
+  const Span g = workspace_.take(7, rows);
   bool changed = false;
-  if (0.5 * xnx + rx > 0.0) {
-    const double scale = xnx > 0.0 ? std::clamp(-rx / xnx, 0.0, 1.0) : 0.0;
-    for (std::size_t i = 0; i < contact_rows; ++i) gamma_[i] *= scale;
-    stats.impulse_scale = scale;
-    problem_.velocities(gamma_, v, w);
-    changed = true;
+  if (!stats.solver.converged) {
+    // The line search runs over the contacts' rows only: joints and motors
+    // keep their impulses.
+    const Span base = workspace_.take(5, rows), r = workspace_.take(6, rows);
+    std::copy(gamma_.begin(), gamma_.end(), base.begin());
+    std::fill(base.begin(), base.begin() + std::ptrdiff_t(contact_rows), 0.0);
+    problem_.gradient(base, r);    // at the joints' impulses alone
+    problem_.gradient(gamma_, g);  // N x + r
+    double rx = 0.0, xnx = 0.0;    // in row order: the same bits for any thread count
+    for (std::size_t i = 0; i < contact_rows; ++i) {
+      rx += r[i] * gamma_[i];
+      xnx += gamma_[i] * (g[i] - r[i]);
+    }
+    if (0.5 * xnx + rx > 0.0) {
+      const double scale = xnx > 0.0 ? std::clamp(-rx / xnx, 0.0, 1.0) : 0.0;
+      for (std::size_t i = 0; i < contact_rows; ++i) gamma_[i] *= scale;
+      stats.impulse_scale = scale;
+      problem_.velocities(gamma_, v, w);
+      changed = true;
+    }
   }
+  // Every step: a solve that converged by its RMS residual can still leave
+  // one wall row violated.
   stats.wall_corrections =
       problem_.guard_walls(gamma_, v, w, kGuardFactor * m.solver.tolerance, kGuardSweeps);
   if (stats.wall_corrections > 0) {

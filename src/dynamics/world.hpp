@@ -39,9 +39,9 @@ struct StepStats {
   // through a plate).
   double max_wall_penetration_relative = 0.0;
   double joint_drift = 0.0;               // m, at the start of the step
-  // When the solve stopped at its cap (World::finish_unconverged): the
-  // factor its impulses were scaled by so as not to create energy (1: kept),
-  // and the wall rows it left violated that the wall guard finished.
+  // World::make_safe: when the solve stopped at its cap, the factor its
+  // contact impulses were scaled by so as not to create energy (1: kept);
+  // on every step, the wall rows left violated that the wall guard finished.
   double impulse_scale = 1.0;
   std::size_t wall_corrections = 0;
   // Bodies whose wall impulses were scaled down to take the relaxed cone's
@@ -95,7 +95,7 @@ class World {
   void set_body_motion(double t);
   void build_solver_bodies();
   void dem_contacts(StepStats& stats);
-  void finish_unconverged(StepStats& stats);
+  void make_safe(StepStats& stats);
   void release_sliding(StepStats& stats);
   void integrate(double h);
   void remember_impulses();
