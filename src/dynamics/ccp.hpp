@@ -99,6 +99,11 @@ class CcpProblem {
   // Upper bound on the largest eigenvalue of N (Gershgorin-like, cheap).
   double diagonal_max() const { return diag_max_; }
 
+  // g = J v + b for velocities v, w: the gradient N x + r when v, w are
+  // velocities(x), without the scatter again.
+  void gradient_at(const std::vector<Vec3>& v, const std::vector<Vec3>& w, Span g) const {
+    gather(v, w, true, g);
+  }
   // Final velocities v_free + M^-1 J^T x.
   void velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>& w) const;
 

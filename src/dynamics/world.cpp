@@ -251,7 +251,7 @@ void World::make_safe(StepStats& stats) {
     std::copy(gamma_.begin(), gamma_.end(), base.begin());
     std::fill(base.begin(), base.begin() + std::ptrdiff_t(contact_rows), 0.0);
     problem_.gradient(base, r);    // at the joints' impulses alone
-    problem_.gradient(gamma_, g);  // N x + r
+    problem_.gradient_at(v, w, g);  // N x + r, from the velocities of x
     double rx = 0.0, xnx = 0.0;    // in row order: the same bits for any thread count
     for (std::size_t i = 0; i < contact_rows; ++i) {
       rx += r[i] * gamma_[i];
@@ -274,7 +274,7 @@ void World::make_safe(StepStats& stats) {
     changed = true;
   }
   if (changed) {
-    problem_.gradient(gamma_, g);
+    problem_.gradient_at(v, w, g);
     problem_.residual(gamma_, g, stats.solver.residual, stats.solver.residual_max);
   }
 }
