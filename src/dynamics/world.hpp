@@ -47,6 +47,8 @@ struct StepStats {
   // Bodies whose wall impulses were scaled down to take the relaxed cone's
   // lift back (every step; CcpProblem::release_sliding_walls).
   std::size_t sliding_releases = 0;
+  // Clumps in contact whose spin was limited (World::limit_spin).
+  std::size_t spin_limited = 0;
   // DEM only: the smallest particle's Rayleigh time (s; 0 under DVI), and
   // whether the step exceeds 20 % of it (explicit contact is then unreliable).
   double rayleigh_time = 0.0;
@@ -96,6 +98,7 @@ class World {
   void build_solver_bodies();
   void dem_contacts(StepStats& stats);
   void make_safe(StepStats& stats);
+  void limit_spin(StepStats& stats);
   void release_sliding(StepStats& stats);
   void integrate(double h);
   void remember_impulses();
@@ -105,6 +108,8 @@ class World {
   Particles particles_;
   Bodies bodies_;
   std::vector<JointFrame> joint_frames_;
+  std::vector<double> max_turn_;        // per shape: rad per step in contact (limit_spin)
+  std::vector<std::uint8_t> touching_;  // per particle: has a contact this step
   double time_ = 0.0;
   std::uint64_t next_id_ = 0;
   std::vector<Hook> pre_, post_;

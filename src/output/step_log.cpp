@@ -46,6 +46,7 @@ void StepLog::record(const StepStats& s, double wall_seconds) {
   if (s.impulse_scale < 1.0) ++sum_.steps_impulses_scaled;
   sum_.wall_corrections += s.wall_corrections;
   sum_.sliding_releases += s.sliding_releases;
+  sum_.spin_limited += s.spin_limited;
   sum_.max_joint_drift = std::max(sum_.max_joint_drift, s.joint_drift);
   if (s.rayleigh_time > 0.0) sum_.rayleigh_time_min = std::min(sum_.rayleigh_time_min, s.rayleigh_time);
   if (s.step_above_rayleigh_limit) ++sum_.steps_above_rayleigh_limit;

@@ -112,6 +112,7 @@ Json solver_json(const RunRecord& r) {
           {"steps_impulses_scaled", s.steps_impulses_scaled},
           {"wall_guard_corrections", s.wall_corrections},
           {"sliding_releases", s.sliding_releases},
+          {"spin_limited", s.spin_limited},
           {"joint_drift_max_m", s.max_joint_drift},
           {"particles_max", s.max_particles},
           {"contacts_max", s.max_contacts}};
