@@ -4,7 +4,7 @@
 # run with the pass criteria's measures. Usage, from the repository root:
 #   bash bench/stress.sh [OUT_DIR] [SCENE_NAME...]        (default: bench/out/stress, all)
 # The 1e5-particle dense flow is the long one (hours on 2 cores): name the
-# others to leave it out.
+# others to leave it out. One thread each.
 set -u
 out=${1:-bench/out/stress}; shift || true
 bin=${CES_SIM:-build/ces-sim}
@@ -18,7 +18,7 @@ for name in "${runs[@]}"; do
     friction_1) scene=scenes/stress/friction.yaml
                 sets=(--set materials.grain.friction=1 --set materials.steel.friction=1) ;;
   esac
-  OMP_WAIT_POLICY=PASSIVE "$bin" "$scene" -o "$out/$name" --quiet "${sets[@]}"
+  "$bin" "$scene" -o "$out/$name" --threads 1 --quiet "${sets[@]}"
   python3 - "$out/$name/summary.json" "$name" <<'PY'
 import json, sys
 j = json.load(open(sys.argv[1])); s = j["solver"]; e = j["energy"]; b = j["balance"]
