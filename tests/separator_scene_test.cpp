@@ -309,11 +309,11 @@ std::vector<double> positions(const std::vector<Landing>& all, const std::string
 // nearly all of it has landed, the FR-4 flakes after riding 3/4 of a turn
 // to the brush (1.6 s). Thresholds (measured at seed 1 in brackets):
 //  - copper: at least 90 % of it in the conductor product (100 %), whose
-//    copper grade is at least 90 % (100 %); at most 5 % of the FR-4 there
-//    (0 %);
-//  - FR-4 into the near (nonconductor) product: at least 40 % of it (51 %)
+//    copper grade is at least 90 % (99.96 %); at most 5 % of the FR-4
+//    there (0.02 %);
+//  - FR-4 into the near (nonconductor) product: at least 40 % of it (50 %)
 //    and no copper, at least 85 % of that brushed off the drum (charge 0:
-//    91 %). Half the FR-4 mass is flakes, pinned by the face law
+//    96 %; 81-95 % over earlier engines). Half the FR-4 mass is flakes, pinned by the face law
 //    (stages.hpp) and brushed off: 98 % of them reach the near product. The other half
 //    is grains, whose sphere-law image force (at most 1.06 m g at 0.5 mm)
 //    cannot hold them under the drum, where 1.36 m g pulls them off: they
