@@ -313,7 +313,7 @@ std::vector<double> positions(const std::vector<Landing>& all, const std::string
 //    there (0.02 %);
 //  - FR-4 into the near (nonconductor) product: at least 40 % of it (50 %)
 //    and no copper, at least 85 % of that brushed off the drum (charge 0:
-//    96 %; 81-95 % over earlier engines). Half the FR-4 mass is flakes, pinned by the face law
+//    97 %; 81-96 % over earlier engines). Half the FR-4 mass is flakes, pinned by the face law
 //    (stages.hpp) and brushed off: 98 % of them reach the near product. The other half
 //    is grains, whose sphere-law image force (at most 1.06 m g at 0.5 mm)
 //    cannot hold them under the drum, where 1.36 m g pulls them off: they
@@ -411,11 +411,14 @@ double standard_deviation(const std::vector<double>& x) {
 // 160 g/s (its 5 % point sits in the sparse tail), and its 40 -> 160 g/s
 // step was 0.2-2.6 standard errors over the eight seeds below.
 //
-// Asserted: the short share and the 5-95 % range grow at each step
-// (monotone, the point; the range did at all eight seeds, by
-// 2.4-34 mm a step); the short share from 5 to 160 g/s by more than two
-// combined standard errors, and the range by more than 20 mm and more than
-// one combined standard error. Measured (seed 1 is the test's; the others
+// Asserted: the short share grows at each step (monotone, the issue's
+// point: the share of copper landing more than 20 mm short of the bulk is
+// how far the landing spreads on its low side) and from 5 to 160 g/s by
+// more than two combined standard errors, and the 5-95 % range from 5 to
+// 160 g/s by more than 20 mm and more than one combined standard error.
+// The range also grew at each step at all eight seeds, but its 40 -> 160
+// g/s step was as small as 0.2 standard errors, so it is not asserted per
+// step. Measured (seed 1 is the test's; the others
 // with --seed N), short share in % (short/landed copper) at 5, 40 and
 // 160 g/s, then the steps 5 -> 40, 40 -> 160 and 5 -> 160 in combined
 // standard errors:
@@ -471,7 +474,6 @@ TEST(SeparatorScene, CopperLandingWidensWithFeedRate) {
     std::printf("[ feed rate ] step %zu: short share %+.1f %%, %.1f standard errors\n", i,
                 100 * step, step / error);
     EXPECT_GT(step, 0.0);
-    EXPECT_GT(spread[i], spread[i - 1]);
   }
   EXPECT_GT(share[2].value - share[0].value, 2.0 * std::hypot(share[0].error, share[2].error));
   EXPECT_GT(spread[2] - spread[0], 0.020);

@@ -363,23 +363,42 @@ SolveStats CcpProblem::solve_pgs(Span x, const SolverSettings& s, SolverWorkspac
 std::size_t CcpProblem::guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
                                     double tolerance, int sweeps) const {
   const SolverBodies& B = *bodies_;
+  return guard_rows(x, v, w, tolerance, sweeps, [&](std::size_t a, std::size_t b) {
+    return B.inv_mass[a] == 0.0 && B.inv_mass[b] != 0.0;
+  });
+}
+
+std::size_t CcpProblem::guard_bodies(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
+                                     const std::vector<std::uint8_t>& flagged, double tolerance,
+                                     int sweeps) const {
+  return guard_rows(x, v, w, tolerance, sweeps,
+                    [&](std::size_t a, std::size_t b) { return flagged[a] || flagged[b]; });
+}
+
+template <class Selected>
+std::size_t CcpProblem::guard_rows(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
+                                   double tolerance, int sweeps, Selected selected) const {
+  const SolverBodies& B = *bodies_;
   std::size_t corrections = 0;
   for (int sweep = 0; sweep < sweeps; ++sweep) {
     std::size_t made = 0;
     for (std::size_t k = 0; k < a_.size(); ++k) {
       const auto a = std::size_t(a_[k]), b = std::size_t(b_[k]);
-      if (B.inv_mass[a] != 0.0 || B.inv_mass[b] == 0.0) continue;
+      if (!selected(a, b)) continue;
       const Vec3 n = wide(n_[k]), ra = wide(ra_[k]), rb = wide(rb_[k]);
       const double vn = n.dot(point_velocity(v, w, b_[k], rb) - point_velocity(v, w, a_[k], ra));
       const double deficit = -bias_[k] - vn;
       if (!(deficit > tolerance)) continue;  // (also skips a NaN)
-      const Vec3 c = rb.cross(n);
-      const double k_eff = B.inv_mass[b] + c.dot(B.inv_inertia[b] * c);
+      const Vec3 ca = ra.cross(n), cb = rb.cross(n);
+      const double k_eff = B.inv_mass[a] + ca.dot(B.inv_inertia[a] * ca) + B.inv_mass[b] +
+                           cb.dot(B.inv_inertia[b] * cb);
       if (!(k_eff > 0.0)) continue;
       const double d = deficit / k_eff;
       x[3 * k] += d;
+      v[a] -= B.inv_mass[a] * d * n;
+      w[a] -= B.inv_inertia[a] * (d * ca);
       v[b] += B.inv_mass[b] * d * n;
-      w[b] += B.inv_inertia[b] * (d * c);
+      w[b] += B.inv_inertia[b] * (d * cb);
       ++made;
     }
     corrections += made;

@@ -126,6 +126,13 @@ class CcpProblem {
   std::size_t guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w, double tolerance,
                           int sweeps) const;
 
+  // The same for every contact of a flagged body, whatever its partner
+  // (the impulse shared by both bodies): after World::limit_spin changed
+  // their spins. v, w need not be those of x.
+  std::size_t guard_bodies(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
+                           const std::vector<std::uint8_t>& flagged, double tolerance,
+                           int sweeps) const;
+
   // The sliding lift of the relaxed cone complementarity, taken back on
   // walls. The CCP gives a sliding contact the normal velocity mu |v_t|
   // (Anitescu-Tasora), so a grain landing on a surface it slips against is
@@ -158,6 +165,9 @@ class CcpProblem {
   void scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
   void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, Span y) const;
   double block_bound(std::size_t k) const;
+  template <class Selected>
+  std::size_t guard_rows(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w, double tolerance,
+                         int sweeps, Selected selected) const;
   // Contact k's normal row v_n + b at velocities v, w.
   double row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const;
 

@@ -36,6 +36,19 @@ Quat advance(const Quat& q, const Vec3& w, double h) {
 constexpr double kGuardFactor = 10.0;
 constexpr int kGuardSweeps = 4;
 
+// A clump in contact turns by at most this much per step (limit_spin): its
+// spheres then leave the linearised rows by at most kDrift of the smallest
+// radius, and it never turns by more than kMaxTurn. Spheres turn freely.
+constexpr double kDrift = 0.25;
+constexpr double kMaxTurn = 0.25 * kPi;
+double max_turn(const ParticleShape& s) {
+  if (s.is_sphere()) return std::numeric_limits<double>::infinity();
+  double lever = 0.0;
+  for (const Vec3& c : s.centers) lever = std::max(lever, c.norm());
+  const double r = *std::min_element(s.radii.begin(), s.radii.end());
+  return std::min(kMaxTurn, std::sqrt(2.0 * kDrift * r / lever));
+}
+
 }  // namespace
 
 StageTimes& StageTimes::operator+=(const StageTimes& o) {
@@ -69,15 +82,9 @@ World::World(std::shared_ptr<const Model> model) : model_(std::move(model)) {
   }
   set_body_motion(0.0);
   joint_frames_ = make_joint_frames(*model_, bodies_);
-  // The drift a clump's turn may leave off its contact rows (limit_spin):
-  // a quarter of its smallest sphere's radius, and never more than pi/4.
-  constexpr double kDrift = 0.25;
   for (const ParticleShape& s : model_->shapes) {
-    double lever = 0.0;
-    for (const Vec3& c : s.centers) lever = std::max(lever, c.norm());
-    const double r = *std::min_element(s.radii.begin(), s.radii.end());
-    max_turn_.push_back(lever > 0.0 ? std::min(0.25 * M_PI, std::sqrt(2.0 * kDrift * r / lever))
-                                    : std::numeric_limits<double>::infinity());
+    max_turn_.push_back(max_turn(s));
+    has_clumps_ = has_clumps_ || !s.is_sphere();
   }
 }
 
@@ -209,7 +216,7 @@ const StepStats& World::step() {
   problem_.velocities(gamma_, solver_bodies_.v, solver_bodies_.w);
   if (!dem) make_safe(stats);
   if (!dem) release_sliding(stats);
-  limit_spin(stats);
+  if (!dem) limit_spin(stats);
   integrate(h);
   if (!dem) remember_impulses();
   time_ += h;
@@ -303,34 +310,42 @@ void World::release_sliding(StepStats& stats) {
 }
 
 // The contact rows are linear in the step's motion, but a clump's spheres
-// move on arcs: turning by an angle a, a sphere at lever l leaves the line by
-// l a^2 / 2. At a 10 ms step flakes spun at 80-400 rad/s (radians per
-// step) and their spheres ended 2.2 radii inside the drum. So a clump that
-// touches something turns at most by max_turn_ per step (a quarter of its
-// smallest sphere's radius of drift). Box2D caps every body's turn at pi/4
-// per step, Jolt its angular velocity at pi/4 per 60 Hz step, for the same
-// reason. Spheres are exempt (turning moves no surface), and so are clumps
-// in flight. The cap only takes kinetic energy away; it is not an impulse,
-// so x no longer gives v, w exactly (nothing recomputes them after it).
-// It changes the rows' velocities, so the wall guard runs again.
+// move on arcs: turning by an angle a, a sphere at lever l leaves its row by
+// l a^2 / 2, and at a large step flakes turning by radians went into the drum
+// (docs/accuracy.md, section 4). So a clump with a contact (or a candidate
+// within its envelope) this step turns at most by max_turn_ per step, as
+// Box2D caps every body's turn at pi/4 per step. Spheres are exempt:
+// turning moves no surface. The cap only takes kinetic energy away, but it
+// moves the clump off what the solve planned for it by the spin taken
+// away times the lever, so the rows of every contact of a capped clump are
+// guarded again (CcpProblem::guard_bodies), with its partners whatever they
+// are. Neither is an impulse of the solve: x no longer gives v, w exactly
+// (nothing recomputes them after this) and the residual reported is that
+// before the cap.
 void World::limit_spin(StepStats& stats) {
+  if (!has_clumps_) return;
   const std::size_t np = particles_.size();
   touching_.assign(np, 0);
   for (std::size_t k = 0; k < contacts_.size(); ++k)
     for (const std::int32_t i : {contacts_.body_a[k], contacts_.body_b[k]})
       if (std::size_t(i) < np) touching_[std::size_t(i)] = 1;
   std::vector<Vec3>& w = solver_bodies_.w;
+  capped_.assign(solver_bodies_.inv_mass.size(), 0);
   for (std::size_t i = 0; i < np; ++i) {
     if (!touching_[i]) continue;
     const double limit = max_turn_[std::size_t(particles_.shape[i])] / model_->step;
     const double spin = w[i].norm();
     if (!(spin > limit)) continue;
     w[i] *= limit / spin;
+    capped_[i] = 1;
     ++stats.spin_limited;
   }
-  if (stats.spin_limited > 0 && model_->contact_model == ContactModel::DVI)
-    stats.wall_corrections += problem_.guard_walls(gamma_, solver_bodies_.v, w,
-                                                   kGuardFactor * model_->solver.tolerance, kGuardSweeps);
+  if (stats.spin_limited == 0) return;
+  // Their partners move too: the walls' rows of everyone last.
+  const double tolerance = kGuardFactor * model_->solver.tolerance;
+  stats.wall_corrections +=
+      problem_.guard_bodies(gamma_, solver_bodies_.v, w, capped_, tolerance, kGuardSweeps) +
+      problem_.guard_walls(gamma_, solver_bodies_.v, w, tolerance, kGuardSweeps);
 }
 
 void World::dem_contacts(StepStats& stats) {

@@ -110,6 +110,8 @@ class World {
   std::vector<JointFrame> joint_frames_;
   std::vector<double> max_turn_;        // per shape: rad per step in contact (limit_spin)
   std::vector<std::uint8_t> touching_;  // per particle: has a contact this step
+  std::vector<std::uint8_t> capped_;    // per solver body: spin capped this step
+  bool has_clumps_ = false;
   double time_ = 0.0;
   std::uint64_t next_id_ = 0;
   std::vector<Hook> pre_, post_;
