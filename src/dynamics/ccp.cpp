@@ -2,6 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 
 #include "common/parallel.hpp"
 
@@ -27,8 +32,6 @@ Vec3 point_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, int 
   const auto u = std::size_t(i);
   return v[u] + w[u].cross(r);
 }
-
-Vec3 wide(const Vec3f& f) { return f.cast<double>(); }
 
 double row_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, const BilateralRow& row) {
   double s = 0.0;
@@ -72,8 +75,10 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   a_ = c.body_a;
   b_ = c.body_b;
   mu_ = c.friction;
-  for (auto* f : {&n_, &t1_, &t2_, &ra_, &rb_}) f->resize(nc);
-  bias_.resize(nc);
+  // Padded to whole blocks of the kernel with zeros (apgd_step).
+  mu_.resize((nc + kLanes - 1) / kLanes * kLanes, 0.0);
+  frame_.assign((nc + kLanes - 1) / kLanes * kFrameBlock, 0.0f);  // padding lanes: 0
+  bias_.assign(mu_.size(), 0.0);
   double diag_max = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : diag_max) if (std::ptrdiff_t(nc) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(nc); ++s) {
@@ -83,11 +88,10 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     tangents(n, t1, t2);
     const Vec3 ra = c.point[k] - B.x[std::size_t(a_[k])];
     const Vec3 rb = c.point[k] - B.x[std::size_t(b_[k])];
-    n_[k] = n.cast<float>();
-    t1_[k] = t1.cast<float>();
-    t2_[k] = t2.cast<float>();
-    ra_[k] = ra.cast<float>();
-    rb_[k] = rb.cast<float>();
+    float* f = &frame_[k / kLanes * kFrameBlock + k % kLanes];
+    const Vec3* parts[] = {&n, &t1, &t2, &ra, &rb};
+    for (const Vec3* part : parts)
+      for (int c = 0; c < 3; ++c, f += kLanes) *f = float((*part)[c]);
     // Stabilization: close a positive gap exactly this step, push an overlap
     // out no faster than the recovery speed.
     double bias = std::max(c.gap[k] / h, -settings.recovery_speed);
@@ -96,9 +100,9 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     const bool impact = approach < -settings.restitution_threshold && c.gap[k] + h * approach < 0.0;
     if (impact && c.restitution[k] > 0.0) bias = std::min(bias, c.restitution[k] * approach);
     bias_[k] = bias;
-    const Vec3 nw = wide(n_[k]);  // the rounded row the kernel applies
-    diag_max = std::max(diag_max, row_mass(B, a_[k], nw, wide(ra_[k]).cross(nw)) +
-                                      row_mass(B, b_[k], nw, wide(rb_[k]).cross(nw)));
+    const Vec3 nw = normal(k);  // the rounded row the kernel applies
+    diag_max = std::max(diag_max, row_mass(B, a_[k], nw, lever_a(k).cross(nw)) +
+                                      row_mass(B, b_[k], nw, lever_b(k).cross(nw)));
   }
   row_diag_.resize(rows_.size());
   for (std::size_t j = 0; j < rows_.size(); ++j) {
@@ -113,17 +117,22 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
 
 void CcpProblem::scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
                          std::vector<Vec3>& dw) const {
-  const SolverBodies& B = *bodies_;
   const auto nc = std::ptrdiff_t(a_.size());
-  const auto nb = std::ptrdiff_t(B.inv_mass.size());
-  impulse_.resize(a_.size());
-  dv.resize(B.inv_mass.size());
-  dw.resize(B.inv_mass.size());
+  impulse_.resize(mu_.size());
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t k = 0; k < nc; ++k) {
     const auto u = std::size_t(k);
-    impulse_[u] = wide(n_[u]) * x[3 * u] + wide(t1_[u]) * x[3 * u + 1] + wide(t2_[u]) * x[3 * u + 2];
+    impulse_[u] = normal(u) * x[3 * u] + tangent1(u) * x[3 * u + 1] + tangent2(u) * x[3 * u + 2];
   }
+  scatter_bodies(x, add_free, dv, dw);
+}
+
+void CcpProblem::scatter_bodies(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
+                                std::vector<Vec3>& dw) const {
+  const SolverBodies& B = *bodies_;
+  const auto nb = std::ptrdiff_t(B.inv_mass.size());
+  dv.resize(B.inv_mass.size());
+  dw.resize(B.inv_mass.size());
 #pragma omp parallel for schedule(static) if (nb > kParallelMin)
   for (std::ptrdiff_t i = 0; i < nb; ++i) {
     const auto u = std::size_t(i);
@@ -133,10 +142,10 @@ void CcpProblem::scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
       const std::size_t k = entry >> 1;
       if (entry & 1) {
         lin += impulse_[k];
-        ang += wide(rb_[k]).cross(impulse_[k]);
+        ang += lever_b(k).cross(impulse_[k]);
       } else {
         lin -= impulse_[k];
-        ang -= wide(ra_[k]).cross(impulse_[k]);
+        ang -= lever_a(k).cross(impulse_[k]);
       }
     }
     dv[u] = B.inv_mass[u] * lin;
@@ -153,13 +162,18 @@ void CcpProblem::gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, 
                         Span y) const {
   const auto nc = std::ptrdiff_t(a_.size());
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
-  for (std::ptrdiff_t k = 0; k < nc; ++k) {
-    const auto u = std::size_t(k);
-    const Vec3 rel = point_velocity(v, w, b_[u], wide(rb_[u])) - point_velocity(v, w, a_[u], wide(ra_[u]));
-    y[3 * u] = wide(n_[u]).dot(rel) + (add_bias ? bias_[u] : 0.0);
-    y[3 * u + 1] = wide(t1_[u]).dot(rel);
-    y[3 * u + 2] = wide(t2_[u]).dot(rel);
+  for (std::ptrdiff_t s = 0; s < nc; ++s) {
+    const auto k = std::size_t(s);
+    const Vec3 rel = point_velocity(v, w, b_[k], lever_b(k)) - point_velocity(v, w, a_[k], lever_a(k));
+    y[3 * k] = normal(k).dot(rel) + (add_bias ? bias_[k] : 0.0);
+    y[3 * k + 1] = tangent1(k).dot(rel);
+    y[3 * k + 2] = tangent2(k).dot(rel);
   }
+  gather_rows(v, w, add_bias, y);
+}
+
+void CcpProblem::gather_rows(const std::vector<Vec3>& v, const std::vector<Vec3>& w,
+                             bool add_bias, Span y) const {
   for (std::size_t j = 0; j < rows_.size(); ++j)
     y[3 * a_.size() + j] = row_velocity(v, w, rows_[j]) + (add_bias ? rows_[j].bias : 0.0);
 }
@@ -242,10 +256,256 @@ void CcpProblem::residual(ConstSpan x, ConstSpan g, double& rms, double& max) co
   rms = x.empty() ? 0.0 : std::sqrt(total.sum / double(x.size()));
 }
 
+// ---------------------------------------------------------------------------
+// The APGD kernel: four contacts to a vector (GCC/Clang vector extensions;
+// AVX when the build enables it, two SSE2 halves otherwise). Lane l holds
+// contact 4 b + l of block b. The rows x, g, ... keep their layout, three
+// doubles per contact: a block's 12 are loaded as three vectors and
+// transposed. Each lane does the scalar code's arithmetic in the same
+// order, so the results are those of project_cone and gather_contact; only
+// the sums are added in another order (per lane, lanes at the chunk's end).
+namespace {
+
+using d4 = double __attribute__((vector_size(32)));
+using f4 = float __attribute__((vector_size(16)));
+
+[[gnu::always_inline]] inline d4 load(const double* p) {
+  d4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+[[gnu::always_inline]] inline void store(double* p, d4 v) { std::memcpy(p, &v, sizeof v); }
+[[gnu::always_inline]] inline d4 widen(const float* p) {
+  f4 f;
+  std::memcpy(&f, p, sizeof f);
+  return __builtin_convertvector(f, d4);
+}
+[[gnu::always_inline]] inline d4 select(decltype(d4{} < d4{}) mask, d4 a, d4 b) { return mask ? a : b; }
+[[gnu::always_inline]] inline d4 vmax(d4 a, d4 b) { return select(a < b, b, a); }  // std::max(a, b)'s lanes
+[[gnu::always_inline]] inline d4 vabs(d4 a) { return select(a < 0.0, -a, a); }
+[[gnu::always_inline]] inline d4 vsqrt(d4 a) {
+#if defined(__AVX__)
+  return d4(_mm256_sqrt_pd(__m256d(a)));
+#elif defined(__SSE2__)
+  const __m128d lo = _mm_sqrt_pd(_mm_set_pd(a[1], a[0])), hi = _mm_sqrt_pd(_mm_set_pd(a[3], a[2]));
+  return d4{lo[0], lo[1], hi[0], hi[1]};
+#else
+  return d4{std::sqrt(a[0]), std::sqrt(a[1]), std::sqrt(a[2]), std::sqrt(a[3])};
+#endif
+}
+double lane_sum(d4 a) { return (a[0] + a[1]) + (a[2] + a[3]); }
+double lane_max(d4 a) { return std::max(std::max(a[0], a[1]), std::max(a[2], a[3])); }
+
+// Three rows (normal, t1, t2) of four contacts, lane = contact.
+struct Rows {
+  d4 n, t1, t2;
+};
+// 12 doubles [n0 t0 u0 n1 t1 u1 ...] <-> the rows.
+[[gnu::always_inline]] inline Rows load_rows(const double* p) {
+  const d4 a0 = load(p), a1 = load(p + 4), a2 = load(p + 8);
+  return {__builtin_shufflevector(__builtin_shufflevector(a0, a1, 0, 3, 6, 7), a2, 0, 1, 2, 5),
+          __builtin_shufflevector(__builtin_shufflevector(a0, a1, 1, 4, 7, 7), a2, 0, 1, 2, 6),
+          __builtin_shufflevector(__builtin_shufflevector(a0, a1, 2, 5, 5, 5), a2, 0, 1, 4, 7)};
+}
+[[gnu::always_inline]] inline void store_rows(double* p, const Rows& r) {
+  store(p, __builtin_shufflevector(__builtin_shufflevector(r.n, r.t1, 0, 4, 1, 1), r.t2, 0, 1, 4, 2));
+  store(p + 4,
+        __builtin_shufflevector(__builtin_shufflevector(r.t1, r.t2, 1, 5, 2, 2), r.n, 0, 1, 6, 2));
+  store(p + 8,
+        __builtin_shufflevector(__builtin_shufflevector(r.t2, r.n, 2, 7, 3, 3), r.t1, 0, 1, 7, 2));
+}
+
+// project_cone, lane by lane, without branches.
+[[gnu::always_inline]] inline void project_cone(d4 mu, Rows& g) {
+  const d4 s2 = g.t1 * g.t1 + g.t2 * g.t2, mu2 = mu * mu;
+  const auto inside = (g.n >= 0.0) & (s2 <= mu2 * g.n * g.n);
+  const auto polar = (g.n <= 0.0) & (mu2 * s2 <= g.n * g.n);
+  const d4 s = vsqrt(s2);
+  const d4 along = mu * s + g.n, q = 1.0 / ((mu2 + 1.0) * s);
+  const d4 scale = mu * along * q;
+  const d4 zero = {};
+  const auto frictionless = mu <= 0.0;
+  const auto keep = ~frictionless & inside, clear = ~frictionless & ~inside & polar;
+  const d4 n = select(frictionless, vmax(g.n, zero), along * s * q);
+  g.n = select(keep, g.n, select(clear, zero, n));
+  g.t1 = select(keep, g.t1, select(clear | frictionless, zero, g.t1 * scale));
+  g.t2 = select(keep, g.t2, select(clear | frictionless, zero, g.t2 * scale));
+}
+
+}  // namespace
+
+CcpProblem::TrialSums& CcpProblem::TrialSums::operator+=(const TrialSums& o) {
+  dd += o.dd;
+  dnd += o.dnd;
+  uphill += o.uphill;
+  res_sum += o.res_sum;
+  res_max = std::max(res_max, o.res_max);
+  return *this;
+}
+
+void CcpProblem::apgd_step(ConstSpan x, Span x1, ConstSpan gx, ConstSpan g1, Span y, Span gy,
+                           Span best, const Momentum* momentum, double step) const {
+  const std::size_t nc = a_.size(), blocks = (nc + kLanes - 1) / kLanes;
+  impulse_.resize(mu_.size());  // whole blocks
+  const double ca = momentum ? momentum->ca : 1.0, cb = momentum ? momentum->cb : 0.0;
+  const bool keep = momentum && momentum->keep;
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(nc) > kParallelMin)
+  for (std::ptrdiff_t sb = 0; sb < std::ptrdiff_t(blocks); ++sb) {
+    const std::size_t b = std::size_t(sb), k0 = kLanes * b, i0 = 3 * k0;
+    const std::size_t rows = 3 * std::min(kLanes, nc - k0);
+    // Pointers into the rows, or into zero-padded copies for a short block.
+    double pad[6][12];  // filled only for the short block
+    const bool full = rows == 12;
+    auto in = [&](ConstSpan v, int slot) -> const double* {
+      if (full) return v.data() + i0;
+      std::fill_n(std::copy_n(v.data() + i0, rows, pad[slot]), 12 - rows, 0.0);
+      return pad[slot];
+    };
+    double* py = full ? y.data() + i0 : pad[4];
+    double* pgy = full ? gy.data() + i0 : pad[5];
+    if (momentum) {
+      const double *px = in(x, 0), *pold = in(ConstSpan(x1.data(), x1.size()), 1),
+                   *pgx = in(gx, 2), *pgold = in(g1, 3);
+      if (keep) std::copy_n(px, rows, best.data() + i0);
+      for (std::size_t j = 0; j < 12; j += 4) {
+        store(py + j, ca * load(px + j) - cb * load(pold + j));
+        store(pgy + j, ca * load(pgx + j) - cb * load(pgold + j));
+      }
+    } else if (!full) {
+      in(y, 4);  // into py, pgy
+      in(gy, 5);
+    }
+    double q[12];
+    for (std::size_t j = 0; j < 12; j += 4) store(q + j, load(py + j) - step * load(pgy + j));
+    Rows r = load_rows(q);
+    project_cone(load(mu_.data() + k0), r);
+    if (full) {
+      store_rows(x1.data() + i0, r);
+    } else {
+      store_rows(q, r);
+      std::copy_n(q, rows, x1.data() + i0);
+    }
+    if (!full) {
+      std::copy_n(py, rows, y.data() + i0);
+      std::copy_n(pgy, rows, gy.data() + i0);
+    }
+    // World impulses n qn + t1 qt1 + t2 qt2, component by component.
+    const float* f = &frame_[b * kFrameBlock];
+    Rows imp;
+    d4* out[3] = {&imp.n, &imp.t1, &imp.t2};  // x, y, z components
+    for (int c = 0; c < 3; ++c)
+      *out[c] = widen(f + c * kLanes) * r.n + widen(f + (3 + c) * kLanes) * r.t1 +
+                widen(f + (6 + c) * kLanes) * r.t2;
+    store_rows(impulse_[k0].data(), imp);
+  }
+  for (std::size_t j = 0; j < rows_.size(); ++j) {
+    const std::size_t i = 3 * nc + j;
+    if (momentum) {
+      if (keep) best[i] = x[i];
+      y[i] = ca * x[i] - cb * x1[i];
+      gy[i] = ca * gx[i] - cb * g1[i];
+    }
+    x1[i] = std::clamp(y[i] - step * gy[i], rows_[j].lo, rows_[j].hi);
+  }
+}
+
+CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x, ConstSpan x1, Span g1, ConstSpan y,
+                                                ConstSpan gy) const {
+  scatter_bodies(x1, true, dv_, dw_);
+  const double inv_s = diag_max_, s_res = 1.0 / inv_s;  // the residual's step
+  const std::size_t nc = a_.size();
+  const auto chunks = std::ptrdiff_t((nc + kReduceChunk - 1) / kReduceChunk);
+  static thread_local std::vector<TrialSums> buffer;  // as in reduce()
+  std::vector<TrialSums>& partial = buffer;
+  partial.assign(std::size_t(chunks), TrialSums{});
+#pragma omp parallel for schedule(static) if (chunks > 1)
+  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
+    d4 dd = {}, dnd = {}, uphill = {}, res2 = {}, resm = {};
+    const std::size_t end = std::min(nc, std::size_t(ch + 1) * kReduceChunk);
+    for (std::size_t k0 = std::size_t(ch) * kReduceChunk; k0 < end; k0 += kLanes) {
+      const std::size_t count = std::min(kLanes, end - k0), rows = 3 * count, i0 = 3 * k0;
+      const bool full = count == kLanes;
+      double pad[5][12];  // filled only for the short block
+      auto in = [&](ConstSpan v, int slot) -> const double* {
+        if (full) return v.data() + i0;
+        std::fill_n(std::copy_n(v.data() + i0, rows, pad[slot]), 12 - rows, 0.0);
+        return pad[slot];
+      };
+      // Relative velocity at the contact points, component by component.
+      const float* f = &frame_[k0 / kLanes * kFrameBlock];
+      std::size_t ia[kLanes], ib[kLanes];
+      for (std::size_t l = 0; l < kLanes; ++l) {
+        ia[l] = std::size_t(a_[k0 + std::min(l, count - 1)]);
+        ib[l] = std::size_t(b_[k0 + std::min(l, count - 1)]);
+      }
+      auto lanes = [&](const std::vector<Vec3>& v, const std::size_t* i, int c) {
+        return d4{v[i[0]][c], v[i[1]][c], v[i[2]][c], v[i[3]][c]};
+      };
+      d4 rel[3];
+      {
+        const d4 va[3] = {lanes(dv_, ia, 0), lanes(dv_, ia, 1), lanes(dv_, ia, 2)};
+        const d4 wa[3] = {lanes(dw_, ia, 0), lanes(dw_, ia, 1), lanes(dw_, ia, 2)};
+        const d4 vb[3] = {lanes(dv_, ib, 0), lanes(dv_, ib, 1), lanes(dv_, ib, 2)};
+        const d4 wb[3] = {lanes(dw_, ib, 0), lanes(dw_, ib, 1), lanes(dw_, ib, 2)};
+        const d4 ra[3] = {widen(f + 9 * kLanes), widen(f + 10 * kLanes), widen(f + 11 * kLanes)};
+        const d4 rb[3] = {widen(f + 12 * kLanes), widen(f + 13 * kLanes), widen(f + 14 * kLanes)};
+        for (int c = 0; c < 3; ++c) {
+          const int c1 = (c + 1) % 3, c2 = (c + 2) % 3;  // w x r, as Eigen's cross
+          rel[c] = (vb[c] + (wb[c1] * rb[c2] - wb[c2] * rb[c1])) -
+                   (va[c] + (wa[c1] * ra[c2] - wa[c2] * ra[c1]));
+        }
+      }
+      auto dot = [&](int part) {
+        const float* u = f + 3 * part * kLanes;
+        return widen(u) * rel[0] + widen(u + kLanes) * rel[1] + widen(u + 2 * kLanes) * rel[2];
+      };
+      Rows g = {dot(0) + load(bias_.data() + k0), dot(1), dot(2)};
+      if (!full) {  // padding lanes: zero, whatever the velocities
+        const d4 lane = {0.0, 1.0, 2.0, 3.0};
+        const auto valid = lane < double(count);
+        g = {select(valid, g.n, d4{}), select(valid, g.t1, d4{}), select(valid, g.t2, d4{})};
+      }
+      double* pg = full ? g1.data() + i0 : pad[4];
+      store_rows(pg, g);
+      if (!full) std::copy_n(pad[4], rows, g1.data() + i0);
+      // The iteration's sums over the block's rows.
+      const Rows r1 = load_rows(in(x1, 0)), ry = load_rows(in(y, 1)), rgy = load_rows(in(gy, 2)),
+                 rx = load_rows(in(x, 3));
+      Rows q = {r1.n - s_res * g.n, r1.t1 - s_res * g.t1, r1.t2 - s_res * g.t2};
+      project_cone(load(mu_.data() + k0), q);
+      const d4 Rows::*row[3] = {&Rows::n, &Rows::t1, &Rows::t2};
+      for (const auto m : row) {
+        const d4 d = r1.*m - ry.*m, res = (r1.*m - q.*m) * inv_s;
+        dd += d * d;
+        dnd += d * (g.*m - rgy.*m);
+        uphill += rgy.*m * (r1.*m - rx.*m);
+        res2 += res * res;
+        resm = vmax(resm, vabs(res));
+      }
+    }
+    partial[std::size_t(ch)] = {lane_sum(dd), lane_sum(dnd), lane_sum(uphill), lane_sum(res2),
+                                lane_max(resm)};
+  }
+  gather_rows(dv_, dw_, true, g1);
+  TrialSums total;
+  for (const TrialSums& part : partial) total += part;
+  for (std::size_t j = 0; j < rows_.size(); ++j) {
+    const std::size_t i = 3 * nc + j;
+    const double d = x1[i] - y[i];
+    const double res = (x1[i] - std::clamp(x1[i] - s_res * g1[i], rows_[j].lo, rows_[j].hi)) * inv_s;
+    total.dd += d * d;
+    total.dnd += d * (g1[i] - gy[i]);
+    total.uphill += gy[i] * (x1[i] - x[i]);
+    total.res_sum += res * res;
+    total.res_max = std::max(total.res_max, std::abs(res));
+  }
+  return total;
+}
+
 void CcpProblem::world_impulses(ConstSpan x, std::vector<Vec3>& out) const {
   out.resize(a_.size());
   for (std::size_t k = 0; k < a_.size(); ++k)
-    out[k] = wide(n_[k]) * x[3 * k] + wide(t1_[k]) * x[3 * k + 1] + wide(t2_[k]) * x[3 * k + 2];
+    out[k] = normal(k) * x[3 * k] + tangent1(k) * x[3 * k + 1] + tangent2(k) * x[3 * k + 2];
 }
 
 void CcpProblem::warm_start(const std::vector<ContactKey>& keys,
@@ -261,9 +521,9 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys,
     from = it;
     if (it == prev_keys.end() || !(*it == keys[k])) continue;
     const Vec3& P = prev_impulse[std::size_t(it - prev_keys.begin())];
-    x[3 * k] = wide(n_[k]).dot(P);
-    x[3 * k + 1] = wide(t1_[k]).dot(P);
-    x[3 * k + 2] = wide(t2_[k]).dot(P);
+    x[3 * k] = normal(k).dot(P);
+    x[3 * k + 1] = tangent1(k).dot(P);
+    x[3 * k + 2] = tangent2(k).dot(P);
   }
   const std::size_t base = 3 * a_.size();
   const auto prev_base = std::ptrdiff_t(prev_x.size()) - std::ptrdiff_t(rows_.size());
@@ -276,7 +536,7 @@ double CcpProblem::block_bound(std::size_t k) const {
   // Gershgorin bound on the largest eigenvalue of the contact's 3x3 block of
   // N: per body, m^-1 D D^T + C I^-1 C^T with D the rows (n, t1, t2) and C
   // their lever-arm rows r x d.
-  const Vec3 dir[3] = {wide(n_[k]), wide(t1_[k]), wide(t2_[k])};
+  const Vec3 dir[3] = {normal(k), tangent1(k), tangent2(k)};
   Mat3 D;
   for (int i = 0; i < 3; ++i) D.row(i) = dir[i].transpose();
   Mat3 block = Mat3::Zero();
@@ -286,8 +546,8 @@ double CcpProblem::block_bound(std::size_t k) const {
     for (int i = 0; i < 3; ++i) C.row(i) = r.cross(dir[i]).transpose();
     block += bodies_->inv_mass[u] * D * D.transpose() + C * bodies_->inv_inertia[u] * C.transpose();
   };
-  add(a_[k], wide(ra_[k]));
-  add(b_[k], wide(rb_[k]));
+  add(a_[k], lever_a(k));
+  add(b_[k], lever_b(k));
   return block.cwiseAbs().rowwise().sum().maxCoeff();
 }
 
@@ -309,7 +569,7 @@ SolveStats CcpProblem::solve_pgs(Span x, const SolverSettings& s, SolverWorkspac
     for (std::size_t k = 0; k < nc; ++k) {
       const double step = steps[k];
       if (step <= 0.0) continue;
-      const Vec3 ra = wide(ra_[k]), rb = wide(rb_[k]), n = wide(n_[k]), t1 = wide(t1_[k]), t2 = wide(t2_[k]);
+      const Vec3 ra = lever_a(k), rb = lever_b(k), n = normal(k), t1 = tangent1(k), t2 = tangent2(k);
       const Vec3 rel = point_velocity(v, w, b_[k], rb) - point_velocity(v, w, a_[k], ra);
       const std::size_t i = 3 * k;
       double gn = x[i] - step * (n.dot(rel) + bias_[k]);
@@ -385,7 +645,7 @@ std::size_t CcpProblem::guard_rows(Span x, std::vector<Vec3>& v, std::vector<Vec
     for (std::size_t k = 0; k < a_.size(); ++k) {
       const auto a = std::size_t(a_[k]), b = std::size_t(b_[k]);
       if (!selected(a, b)) continue;
-      const Vec3 n = wide(n_[k]), ra = wide(ra_[k]), rb = wide(rb_[k]);
+      const Vec3 n = normal(k), ra = lever_a(k), rb = lever_b(k);
       const double vn = n.dot(point_velocity(v, w, b_[k], rb) - point_velocity(v, w, a_[k], ra));
       const double deficit = -bias_[k] - vn;
       if (!(deficit > tolerance)) continue;  // (also skips a NaN)
@@ -425,9 +685,9 @@ std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std:
       eligible = (adj_.entry[e] & 1) && B.inv_mass[std::size_t(a_[k])] == 0.0 &&
                  (gn <= 0.0 || (mu > 0.0 && gt2 >= mu * mu * gn * gn * (1.0 - 1e-6)));
       if (!eligible || gn <= 0.0) continue;
-      const Vec3 P = wide(n_[k]) * gn + wide(t1_[k]) * x[i + 1] + wide(t2_[k]) * x[i + 2];
+      const Vec3 P = normal(k) * gn + tangent1(k) * x[i + 1] + tangent2(k) * x[i + 2];
       dv -= B.inv_mass[b] * P;
-      dw -= B.inv_inertia[b] * wide(rb_[k]).cross(P);
+      dw -= B.inv_inertia[b] * lever_b(k).cross(P);
       lifting = lifting || row_of(k, v, w) > tolerance;
     }
     if (!eligible || !lifting) continue;
@@ -438,7 +698,7 @@ std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std:
     bool lowers = false;
     for (std::uint32_t e = first; e < last; ++e) {
       const std::size_t k = adj_.entry[e] >> 1;
-      const double rate = wide(n_[k]).dot(dv + dw.cross(wide(rb_[k]))), row = row_of(k, v, w);
+      const double rate = normal(k).dot(dv + dw.cross(lever_b(k))), row = row_of(k, v, w);
       if (rate < 0.0) t = std::min(t, std::max(0.0, row) / -rate);
       lowers = lowers || (rate < 0.0 && row > tolerance && x[3 * k] > 0.0);
     }
@@ -453,7 +713,7 @@ std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std:
 }
 
 double CcpProblem::row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const {
-  return wide(n_[k]).dot(point_velocity(v, w, b_[k], wide(rb_[k])) - point_velocity(v, w, a_[k], wide(ra_[k]))) +
+  return normal(k).dot(point_velocity(v, w, b_[k], lever_b(k)) - point_velocity(v, w, a_[k], lever_a(k))) +
          bias_[k];
 }
 

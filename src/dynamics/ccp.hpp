@@ -11,6 +11,10 @@
 // is bitwise the same for any number of threads. Reductions over rows go
 // through fixed chunks added in chunk order, for the same reason.
 //
+// APGD, the default, runs on a kernel of its own (apgd_step, apgd_gradient):
+// two passes over the contacts per iteration instead of five, four contacts
+// to a SIMD vector.
+//
 // The contact frames and lever arms are stored in float: the kernel streams
 // them every iteration and is bound by memory bandwidth. They are relative
 // quantities (unit vectors, lever arms of a few mm, at most the drum radius),
@@ -36,9 +40,11 @@
 
 namespace ces {
 
-using Vec3f = Eigen::Vector3f;
 using Span = std::span<double>;
 using ConstSpan = std::span<const double>;
+
+// Contacts per chunk of a reduction; fixed, so sums do not depend on threads.
+inline constexpr std::ptrdiff_t kReduceChunk = 2048;
 
 // Bodies as the solver sees them: particles, then machine bodies.
 struct SolverBodies {
@@ -150,6 +156,26 @@ class CcpProblem {
   std::size_t release_sliding_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
                                     double tolerance) const;
 
+  // APGD's iteration in two streaming passes over the contacts (and one
+  // over the bodies), four contacts to a SIMD vector (solve_apgd; ccp.cpp).
+  // The first: x1 = Π(y - step gy). With `momentum`, y and gy are first
+  // made from the last two iterates (y = ca x - cb x1, gy = ca gx - cb g1,
+  // x1 and g1 still holding the older ones) and, if momentum->keep, best
+  // takes x. It keeps the contacts' world impulses for the second pass.
+  struct Momentum {
+    double ca, cb;
+    bool keep;
+  };
+  void apgd_step(ConstSpan x, Span x1, ConstSpan gx, ConstSpan g1, Span y, Span gy, Span best,
+                 const Momentum* momentum, double step) const;
+  // The second: g1 = N x1 + r at apgd_step's x1, and the sums an APGD
+  // iteration decides on, in fixed chunks as reduce() adds them.
+  struct TrialSums {
+    double dd = 0, dnd = 0, uphill = 0, res_sum = 0, res_max = 0;
+    TrialSums& operator+=(const TrialSums& o);
+  };
+  TrialSums apgd_gradient(ConstSpan x, ConstSpan x1, Span g1, ConstSpan y, ConstSpan gy) const;
+
   // Projected Gauss-Seidel sweeps, in place (needs row access).
   SolveStats solve_pgs(Span x, const SolverSettings& s, SolverWorkspace& ws) const;
 
@@ -161,9 +187,14 @@ class CcpProblem {
   Part reduce(ContactFn acc, RowFn row) const;
 
  private:
-  // dv = M^-1 J^T x (+ v_free); y = J v (+ b).
+  // dv = M^-1 J^T x (+ v_free); y = J v (+ b). scatter_bodies takes D x
+  // from impulse_ (made by scatter or apgd_step) and the bilateral rows from x.
   void scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
+  void scatter_bodies(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
+                      std::vector<Vec3>& dw) const;
   void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, Span y) const;
+  void gather_rows(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias,
+                   Span y) const;
   double block_bound(std::size_t k) const;
   template <class Selected>
   std::size_t guard_rows(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w, double tolerance,
@@ -174,7 +205,21 @@ class CcpProblem {
   const SolverBodies* bodies_ = nullptr;
   // Contacts, structure of arrays.
   std::vector<std::int32_t> a_, b_;
-  std::vector<Vec3f> n_, t1_, t2_, ra_, rb_;
+  // Frames in blocks of kLanes contacts: component c (0-2 the normal, 3-5
+  // and 6-8 the tangents, 9-11 and 12-14 the lever arms of a and b) of
+  // contact k at frame_[k / kLanes * kFrameBlock + c * kLanes + k % kLanes],
+  // so the kernel loads one component of four contacts at once.
+  static constexpr std::size_t kLanes = 4, kFrameBlock = 15 * kLanes;
+  std::vector<float> frame_;
+  Vec3 frame(std::size_t k, std::size_t part) const {
+    const float* f = &frame_[k / kLanes * kFrameBlock + 3 * part * kLanes + k % kLanes];
+    return {double(f[0]), double(f[kLanes]), double(f[2 * kLanes])};
+  }
+  Vec3 normal(std::size_t k) const { return frame(k, 0); }
+  Vec3 tangent1(std::size_t k) const { return frame(k, 1); }
+  Vec3 tangent2(std::size_t k) const { return frame(k, 2); }
+  Vec3 lever_a(std::size_t k) const { return frame(k, 3); }
+  Vec3 lever_b(std::size_t k) const { return frame(k, 4); }
   std::vector<double> mu_, bias_;
   std::vector<BilateralRow> rows_;
   std::vector<double> row_diag_;
@@ -215,9 +260,8 @@ inline void project_cone(double mu, double& gn, double& gt1, double& gt2) {
 
 template <class Part, class ContactFn, class RowFn>
 Part CcpProblem::reduce(ContactFn acc, RowFn row) const {
-  constexpr std::ptrdiff_t kChunk = 2048;  // contacts; fixed, so sums do not depend on threads
   const auto nc = std::ptrdiff_t(a_.size());
-  const std::ptrdiff_t chunks = (nc + kChunk - 1) / kChunk;
+  const std::ptrdiff_t chunks = (nc + kReduceChunk - 1) / kReduceChunk;
   // Grows only: one buffer per Part type and thread of the caller.
   // (Named through a reference: inside the parallel loop the thread_local
   // itself would be each worker's own, empty, instance.)
@@ -227,8 +271,8 @@ Part CcpProblem::reduce(ContactFn acc, RowFn row) const {
 #pragma omp parallel for schedule(static) if (chunks > 1)
   for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
     Part& part = partial[std::size_t(ch)];
-    const std::ptrdiff_t end = std::min(nc, (ch + 1) * kChunk);
-    for (std::ptrdiff_t k = ch * kChunk; k < end; ++k) acc(k, mu_[std::size_t(k)], part);
+    const std::ptrdiff_t end = std::min(nc, (ch + 1) * kReduceChunk);
+    for (std::ptrdiff_t k = ch * kReduceChunk; k < end; ++k) acc(k, mu_[std::size_t(k)], part);
   }
   Part total{};
   for (const Part& part : partial) total += part;

@@ -17,20 +17,6 @@ double dot(ConstSpan a, ConstSpan b) {
       .dot(Eigen::Map<const Eigen::VectorXd>(b.data(), std::ptrdiff_t(b.size())));
 }
 
-// The sums an APGD iteration needs about a trial point x1 taken from y,
-// in one pass (see solve_apgd).
-struct TrialPart {
-  double dd = 0, dnd = 0, uphill = 0, res_sum = 0, res_max = 0;
-  TrialPart& operator+=(const TrialPart& o) {
-    dd += o.dd;
-    dnd += o.dnd;
-    uphill += o.uphill;
-    res_sum += o.res_sum;
-    res_max = std::max(res_max, o.res_max);
-    return *this;
-  }
-};
-
 // The best iterate's record. Until a finite residual is met the stats say
 // NaN: a solve whose every residual was NaN or inf must not report 0.
 struct Best {
@@ -61,7 +47,7 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
   // x and x1, and their gradients, trade buffers each iteration (no copies).
   Span x = ws.take(0, m), gx = ws.take(1, m), x1 = ws.take(2, m), g1 = ws.take(3, m);
   const Span y = ws.take(4, m), gy = ws.take(5, m), best = ws.take(6, m), probe = ws.take(7, m);
-  const double inv_s = p.diagonal_max(), s_res = 1.0 / inv_s;  // the residual's step
+  const double inv_s = p.diagonal_max();
   copy(out, x);
   p.gradient(x, gx);
   copy(x, y);
@@ -74,37 +60,17 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
   const double L_cap = 1e3 * inv_s * double(m);
   double theta = 1.0;
   Best record;
+  // The momentum step y = ca x1 - cb x (and gy alike) of an iteration is
+  // made in the next one's first projected step, and best takes the
+  // iterate then: one pass over the rows less. At the start y, gy are x, gx.
+  CcpProblem::Momentum momentum{1.0, 0.0, false};
+  bool extrapolate = false;
   int it = 0;
   for (; it < s.max_iterations; ++it) {
-    TrialPart t;
-    for (;;) {
-      p.projected_step(y, gy, 1.0 / L, x1);
-      p.gradient(x1, g1);
-      t = p.reduce<TrialPart>(
-          [&](std::ptrdiff_t k, double mu, TrialPart& part) {
-            const auto i = 3 * std::size_t(k);
-            double q[3] = {x1[i] - s_res * g1[i], x1[i + 1] - s_res * g1[i + 1],
-                           x1[i + 2] - s_res * g1[i + 2]};
-            project_cone(mu, q[0], q[1], q[2]);
-            for (std::size_t r = 0; r < 3; ++r) {
-              const double d = x1[i + r] - y[i + r], res = (x1[i + r] - q[r]) * inv_s;
-              part.dd += d * d;
-              part.dnd += d * (g1[i + r] - gy[i + r]);
-              part.uphill += gy[i + r] * (x1[i + r] - x[i + r]);
-              part.res_sum += res * res;
-              part.res_max = std::max(part.res_max, std::abs(res));
-            }
-          },
-          [&](std::ptrdiff_t row, double lo, double hi, TrialPart& part) {
-            const auto i = std::size_t(row);
-            const double d = x1[i] - y[i];
-            const double res = (x1[i] - std::clamp(x1[i] - s_res * g1[i], lo, hi)) * inv_s;
-            part.dd += d * d;
-            part.dnd += d * (g1[i] - gy[i]);
-            part.uphill += gy[i] * (x1[i] - x[i]);
-            part.res_sum += res * res;
-            part.res_max = std::max(part.res_max, std::abs(res));
-          });
+    CcpProblem::TrialSums t;
+    for (bool first = true;; first = false) {
+      p.apgd_step(x, x1, gx, g1, y, gy, best, first && extrapolate ? &momentum : nullptr, 1.0 / L);
+      t = p.apgd_gradient(x, x1, g1, y, gy);
       if (t.dnd <= L * t.dd * (1.0 + 1e-10) || L > L_cap) break;
       L *= 2.0;
     }
@@ -116,27 +82,21 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
       copy(x1, out);
       return record.stats;
     }
-    const bool improves = record.improves(rms);
-    if (improves) record.take(rms, t.res_max);
+    momentum.keep = record.improves(rms);
+    if (momentum.keep) record.take(rms, t.res_max);
     const double theta1 = 0.5 * (-theta * theta + theta * std::sqrt(theta * theta + 4.0));
     const double beta = theta * (1.0 - theta) / (theta * theta + theta1);
     const bool restart = t.uphill > 0.0;  // momentum points uphill
     theta = restart ? 1.0 : theta1;
-    const double ca = restart ? 1.0 : 1.0 + beta, cb = restart ? 0.0 : beta;
-    const auto rows = std::ptrdiff_t(m);
-#pragma omp parallel for schedule(static) if (rows > 3 * kParallelMin)
-    for (std::ptrdiff_t j = 0; j < rows; ++j) {
-      const auto i = std::size_t(j);
-      if (improves) best[i] = x1[i];
-      y[i] = ca * x1[i] - cb * x[i];
-      gy[i] = ca * g1[i] - cb * gx[i];
-    }
+    momentum.ca = restart ? 1.0 : 1.0 + beta;
+    momentum.cb = restart ? 0.0 : beta;
+    extrapolate = true;
     std::swap(x, x1);  // the accepted iterate becomes x; x1's buffer is free
     std::swap(gx, g1);
     L *= 0.9;
   }
   record.stats.iterations = it;
-  copy(best, out);
+  copy(momentum.keep ? x : best, out);  // the last iterate, if it was the best
   return record.stats;
 }
 
