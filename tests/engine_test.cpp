@@ -596,14 +596,14 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   }
   p.projected_step(y_plain, gy_plain, step, plain);
   const CcpProblem::Momentum momentum{ca, cb, true};
-  p.apgd_step(x, x1, gx, g1, y, gy, best, &momentum, step);
+  const double gy_x = p.apgd_step(x, x1, gx, g1, y, gy, best, &momentum, step);
   for (std::size_t i = 0; i < m; ++i) {
     ASSERT_EQ(y[i], y_plain[i]) << i;
     ASSERT_EQ(gy[i], gy_plain[i]) << i;
     ASSERT_EQ(best[i], x[i]) << i;
     ASSERT_EQ(x1[i], plain[i]) << i;
   }
-  const CcpProblem::TrialSums t = p.apgd_gradient(x, x1, g1, y, gy);
+  const CcpProblem::TrialSums t = p.apgd_gradient(x1, g1, y, gy, gy_x);
   p.gradient(x1, g);
   double scale = 0.0;
   for (double v : g) scale = std::max(scale, std::abs(v));

@@ -343,61 +343,73 @@ CcpProblem::TrialSums& CcpProblem::TrialSums::operator+=(const TrialSums& o) {
   return *this;
 }
 
-void CcpProblem::apgd_step(ConstSpan x, Span x1, ConstSpan gx, ConstSpan g1, Span y, Span gy,
-                           Span best, const Momentum* momentum, double step) const {
-  const std::size_t nc = a_.size(), blocks = (nc + kLanes - 1) / kLanes;
+double CcpProblem::apgd_step(ConstSpan x, Span x1, ConstSpan gx, ConstSpan g1, Span y, Span gy,
+                             Span best, const Momentum* momentum, double step) const {
+  const std::size_t nc = a_.size();
   impulse_.resize(mu_.size());  // whole blocks
   const double ca = momentum ? momentum->ca : 1.0, cb = momentum ? momentum->cb : 0.0;
   const bool keep = momentum && momentum->keep;
-#pragma omp parallel for schedule(static) if (std::ptrdiff_t(nc) > kParallelMin)
-  for (std::ptrdiff_t sb = 0; sb < std::ptrdiff_t(blocks); ++sb) {
-    const std::size_t b = std::size_t(sb), k0 = kLanes * b, i0 = 3 * k0;
-    const std::size_t rows = 3 * std::min(kLanes, nc - k0);
-    // Pointers into the rows, or into zero-padded copies for a short block.
-    double pad[6][12];  // filled only for the short block
-    const bool full = rows == 12;
-    auto in = [&](ConstSpan v, int slot) -> const double* {
-      if (full) return v.data() + i0;
-      std::fill_n(std::copy_n(v.data() + i0, rows, pad[slot]), 12 - rows, 0.0);
-      return pad[slot];
-    };
-    double* py = full ? y.data() + i0 : pad[4];
-    double* pgy = full ? gy.data() + i0 : pad[5];
-    if (momentum) {
-      const double *px = in(x, 0), *pold = in(ConstSpan(x1.data(), x1.size()), 1),
-                   *pgx = in(gx, 2), *pgold = in(g1, 3);
-      if (keep) std::copy_n(px, rows, best.data() + i0);
-      for (std::size_t j = 0; j < 12; j += 4) {
-        store(py + j, ca * load(px + j) - cb * load(pold + j));
-        store(pgy + j, ca * load(pgx + j) - cb * load(pgold + j));
+  const auto chunks = std::ptrdiff_t((nc + kReduceChunk - 1) / kReduceChunk);
+  static thread_local std::vector<double> buffer;  // as in reduce()
+  std::vector<double>& partial = buffer;
+  partial.assign(std::size_t(chunks), 0.0);
+#pragma omp parallel for schedule(static) if (chunks > 1)
+  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
+    d4 gy_x = {};
+    const std::size_t end = std::min(nc, std::size_t(ch + 1) * kReduceChunk);
+    for (std::size_t k0 = std::size_t(ch) * kReduceChunk; k0 < end; k0 += kLanes) {
+      const std::size_t i0 = 3 * k0, rows = 3 * std::min(kLanes, end - k0);
+      // Pointers into the rows, or into zero-padded copies for a short block.
+      double pad[6][12];  // filled only for the short block
+      const bool full = rows == 12;
+      auto in = [&](ConstSpan v, int slot) -> const double* {
+        if (full) return v.data() + i0;
+        std::fill_n(std::copy_n(v.data() + i0, rows, pad[slot]), 12 - rows, 0.0);
+        return pad[slot];
+      };
+      const double* px = in(x, 0);
+      double* py = full ? y.data() + i0 : pad[4];
+      double* pgy = full ? gy.data() + i0 : pad[5];
+      if (momentum) {
+        const double *pold = in(ConstSpan(x1.data(), x1.size()), 1), *pgx = in(gx, 2),
+                     *pgold = in(g1, 3);
+        if (keep) std::copy_n(px, rows, best.data() + i0);
+        for (std::size_t j = 0; j < 12; j += 4) {
+          store(py + j, ca * load(px + j) - cb * load(pold + j));
+          store(pgy + j, ca * load(pgx + j) - cb * load(pgold + j));
+        }
+      } else if (!full) {
+        in(y, 4);  // into py, pgy
+        in(gy, 5);
       }
-    } else if (!full) {
-      in(y, 4);  // into py, pgy
-      in(gy, 5);
+      double q[12];
+      for (std::size_t j = 0; j < 12; j += 4) {
+        gy_x += load(pgy + j) * load(px + j);
+        store(q + j, load(py + j) - step * load(pgy + j));
+      }
+      Rows r = load_rows(q);
+      project_cone(load(mu_.data() + k0), r);
+      if (full) {
+        store_rows(x1.data() + i0, r);
+      } else {
+        store_rows(q, r);
+        std::copy_n(q, rows, x1.data() + i0);
+        std::copy_n(py, rows, y.data() + i0);
+        std::copy_n(pgy, rows, gy.data() + i0);
+      }
+      // World impulses n qn + t1 qt1 + t2 qt2, component by component.
+      const float* f = &frame_[k0 / kLanes * kFrameBlock];
+      Rows imp;
+      d4* out[3] = {&imp.n, &imp.t1, &imp.t2};  // x, y, z components
+      for (int c = 0; c < 3; ++c)
+        *out[c] = widen(f + c * kLanes) * r.n + widen(f + (3 + c) * kLanes) * r.t1 +
+                  widen(f + (6 + c) * kLanes) * r.t2;
+      store_rows(impulse_[k0].data(), imp);
     }
-    double q[12];
-    for (std::size_t j = 0; j < 12; j += 4) store(q + j, load(py + j) - step * load(pgy + j));
-    Rows r = load_rows(q);
-    project_cone(load(mu_.data() + k0), r);
-    if (full) {
-      store_rows(x1.data() + i0, r);
-    } else {
-      store_rows(q, r);
-      std::copy_n(q, rows, x1.data() + i0);
-    }
-    if (!full) {
-      std::copy_n(py, rows, y.data() + i0);
-      std::copy_n(pgy, rows, gy.data() + i0);
-    }
-    // World impulses n qn + t1 qt1 + t2 qt2, component by component.
-    const float* f = &frame_[b * kFrameBlock];
-    Rows imp;
-    d4* out[3] = {&imp.n, &imp.t1, &imp.t2};  // x, y, z components
-    for (int c = 0; c < 3; ++c)
-      *out[c] = widen(f + c * kLanes) * r.n + widen(f + (3 + c) * kLanes) * r.t1 +
-                widen(f + (6 + c) * kLanes) * r.t2;
-    store_rows(impulse_[k0].data(), imp);
+    partial[std::size_t(ch)] = lane_sum(gy_x);
   }
+  double gy_dot_x = 0.0;
+  for (const double part : partial) gy_dot_x += part;
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const std::size_t i = 3 * nc + j;
     if (momentum) {
@@ -405,12 +417,14 @@ void CcpProblem::apgd_step(ConstSpan x, Span x1, ConstSpan gx, ConstSpan g1, Spa
       y[i] = ca * x[i] - cb * x1[i];
       gy[i] = ca * gx[i] - cb * g1[i];
     }
+    gy_dot_x += gy[i] * x[i];
     x1[i] = std::clamp(y[i] - step * gy[i], rows_[j].lo, rows_[j].hi);
   }
+  return gy_dot_x;
 }
 
-CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x, ConstSpan x1, Span g1, ConstSpan y,
-                                                ConstSpan gy) const {
+CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan y, ConstSpan gy,
+                                                double gy_dot_x) const {
   scatter_bodies(x1, true, dv_, dw_);
   const double inv_s = diag_max_, s_res = 1.0 / inv_s;  // the residual's step
   const std::size_t nc = a_.size();
@@ -420,12 +434,12 @@ CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x, ConstSpan x1, Span 
   partial.assign(std::size_t(chunks), TrialSums{});
 #pragma omp parallel for schedule(static) if (chunks > 1)
   for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
-    d4 dd = {}, dnd = {}, uphill = {}, res2 = {}, resm = {};
+    d4 dd = {}, dnd = {}, gy_x1 = {}, res2 = {}, resm = {};
     const std::size_t end = std::min(nc, std::size_t(ch + 1) * kReduceChunk);
     for (std::size_t k0 = std::size_t(ch) * kReduceChunk; k0 < end; k0 += kLanes) {
       const std::size_t count = std::min(kLanes, end - k0), rows = 3 * count, i0 = 3 * k0;
       const bool full = count == kLanes;
-      double pad[5][12];  // filled only for the short block
+      double pad[4][12];  // filled only for the short block
       auto in = [&](ConstSpan v, int slot) -> const double* {
         if (full) return v.data() + i0;
         std::fill_n(std::copy_n(v.data() + i0, rows, pad[slot]), 12 - rows, 0.0);
@@ -465,12 +479,11 @@ CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x, ConstSpan x1, Span 
         const auto valid = lane < double(count);
         g = {select(valid, g.n, d4{}), select(valid, g.t1, d4{}), select(valid, g.t2, d4{})};
       }
-      double* pg = full ? g1.data() + i0 : pad[4];
+      double* pg = full ? g1.data() + i0 : pad[3];
       store_rows(pg, g);
-      if (!full) std::copy_n(pad[4], rows, g1.data() + i0);
+      if (!full) std::copy_n(pad[3], rows, g1.data() + i0);
       // The iteration's sums over the block's rows.
-      const Rows r1 = load_rows(in(x1, 0)), ry = load_rows(in(y, 1)), rgy = load_rows(in(gy, 2)),
-                 rx = load_rows(in(x, 3));
+      const Rows r1 = load_rows(in(x1, 0)), ry = load_rows(in(y, 1)), rgy = load_rows(in(gy, 2));
       Rows q = {r1.n - s_res * g.n, r1.t1 - s_res * g.t1, r1.t2 - s_res * g.t2};
       project_cone(load(mu_.data() + k0), q);
       const d4 Rows::*row[3] = {&Rows::n, &Rows::t1, &Rows::t2};
@@ -478,12 +491,12 @@ CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x, ConstSpan x1, Span 
         const d4 d = r1.*m - ry.*m, res = (r1.*m - q.*m) * inv_s;
         dd += d * d;
         dnd += d * (g.*m - rgy.*m);
-        uphill += rgy.*m * (r1.*m - rx.*m);
+        gy_x1 += rgy.*m * r1.*m;
         res2 += res * res;
         resm = vmax(resm, vabs(res));
       }
     }
-    partial[std::size_t(ch)] = {lane_sum(dd), lane_sum(dnd), lane_sum(uphill), lane_sum(res2),
+    partial[std::size_t(ch)] = {lane_sum(dd), lane_sum(dnd), lane_sum(gy_x1), lane_sum(res2),
                                 lane_max(resm)};
   }
   gather_rows(dv_, dw_, true, g1);
@@ -495,10 +508,11 @@ CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x, ConstSpan x1, Span 
     const double res = (x1[i] - std::clamp(x1[i] - s_res * g1[i], rows_[j].lo, rows_[j].hi)) * inv_s;
     total.dd += d * d;
     total.dnd += d * (g1[i] - gy[i]);
-    total.uphill += gy[i] * (x1[i] - x[i]);
+    total.uphill += gy[i] * x1[i];
     total.res_sum += res * res;
     total.res_max = std::max(total.res_max, std::abs(res));
   }
+  total.uphill -= gy_dot_x;  // gy.(x1 - x)
   return total;
 }
 

@@ -161,20 +161,22 @@ class CcpProblem {
   // The first: x1 = Π(y - step gy). With `momentum`, y and gy are first
   // made from the last two iterates (y = ca x - cb x1, gy = ca gx - cb g1,
   // x1 and g1 still holding the older ones) and, if momentum->keep, best
-  // takes x. It keeps the contacts' world impulses for the second pass.
+  // takes x. It keeps the contacts' world impulses for the second pass and
+  // returns gy.x, which the second would otherwise read x again for.
   struct Momentum {
     double ca, cb;
     bool keep;
   };
-  void apgd_step(ConstSpan x, Span x1, ConstSpan gx, ConstSpan g1, Span y, Span gy, Span best,
-                 const Momentum* momentum, double step) const;
+  double apgd_step(ConstSpan x, Span x1, ConstSpan gx, ConstSpan g1, Span y, Span gy, Span best,
+                   const Momentum* momentum, double step) const;
   // The second: g1 = N x1 + r at apgd_step's x1, and the sums an APGD
-  // iteration decides on, in fixed chunks as reduce() adds them.
+  // iteration decides on (uphill = gy.(x1 - x)), added in fixed chunks as
+  // reduce() adds them.
   struct TrialSums {
     double dd = 0, dnd = 0, uphill = 0, res_sum = 0, res_max = 0;
     TrialSums& operator+=(const TrialSums& o);
   };
-  TrialSums apgd_gradient(ConstSpan x, ConstSpan x1, Span g1, ConstSpan y, ConstSpan gy) const;
+  TrialSums apgd_gradient(ConstSpan x1, Span g1, ConstSpan y, ConstSpan gy, double gy_dot_x) const;
 
   // Projected Gauss-Seidel sweeps, in place (needs row access).
   SolveStats solve_pgs(Span x, const SolverSettings& s, SolverWorkspace& ws) const;

@@ -69,8 +69,9 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
   for (; it < s.max_iterations; ++it) {
     CcpProblem::TrialSums t;
     for (bool first = true;; first = false) {
-      p.apgd_step(x, x1, gx, g1, y, gy, best, first && extrapolate ? &momentum : nullptr, 1.0 / L);
-      t = p.apgd_gradient(x, x1, g1, y, gy);
+      const double gy_x =
+          p.apgd_step(x, x1, gx, g1, y, gy, best, first && extrapolate ? &momentum : nullptr, 1.0 / L);
+      t = p.apgd_gradient(x1, g1, y, gy, gy_x);
       if (t.dnd <= L * t.dd * (1.0 + 1e-10) || L > L_cap) break;
       L *= 2.0;
     }
