@@ -219,7 +219,7 @@ TEST(Engine, SphereLandingWithSlipStaysOnPlane) {
 }
 
 // World::limit_spin: a clump that touches something turns by at most
-// sqrt(2 * 0.25 * r / lever) per step (its spheres drift a quarter of a
+// sqrt(2 * 0.1 * r / lever) per step (its spheres drift a tenth of a
 // radius off the linearised contact rows); in flight it keeps its spin. A
 // dumbbell of two 1 mm spheres 6 mm apart (lever 3 r) spinning at 2000 rad/s
 // about the vertical, one lying on a frictionless plane (no torque: only the
@@ -234,7 +234,7 @@ TEST(Engine, ClumpSpinIsCappedOnlyInContact) {
   const double r = 1e-3, spin = 2000.0;
   w.add_particle(1, r, 0, Vec3(0, r, 0), Quat::Identity(), Vec3::Zero(), Vec3(0, spin, 0));
   w.add_particle(1, r, 0, Vec3(0, 1.0, 0), Quat::Identity(), Vec3::Zero(), Vec3(0, spin, 0));
-  const double cap = std::sqrt(2.0 * 0.25 / 3.0) / m->step;
+  const double cap = std::sqrt(2.0 * 0.1 / 3.0) / m->step;
   EXPECT_EQ(w.step().spin_limited, 1u);
   EXPECT_NEAR(w.particles().angular_velocity[0].norm(), cap, 1e-9 * cap);
   EXPECT_NEAR(w.particles().angular_velocity[1].norm(), spin, 1e-12 * spin);
@@ -243,8 +243,8 @@ TEST(Engine, ClumpSpinIsCappedOnlyInContact) {
 // The cap's purpose: a dumbbell (two 1 mm spheres, centres 6 mm apart)
 // tumbling at 450 rad/s onto a plane at a 10 ms step (4.5 rad a step). Its
 // spheres' rows are linear in the step's motion, so uncapped a sphere ended
-// 0.66 radii inside the plane; capped 0.03. Bound: a quarter radius (the
-// cap's drift).
+// 0.66 radii inside the plane; capped (at a quarter radius of drift) 0.03.
+// Bound: a quarter radius.
 TEST(Engine, TumblingClumpStaysOutOfThePlane) {
   auto m = base_model({0.5}, 10e-3);
   m->shapes.push_back(make_particle_shape({Vec3(-3, 0, 0), Vec3(3, 0, 0)}, {1.0, 1.0}));
