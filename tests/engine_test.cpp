@@ -9,6 +9,7 @@
 
 #include "dynamics/ccp.hpp"
 #include "dynamics/world.hpp"
+#include "feed/shapes.hpp"
 #include "support.hpp"
 
 namespace ces {
@@ -218,7 +219,7 @@ TEST(Engine, SphereLandingWithSlipStaysOnPlane) {
 }
 
 // World::limit_spin: a clump that touches something turns by at most
-// sqrt(2 * 0.25 * r / lever) per step (its spheres drift a quarter of a
+// sqrt(2 * 0.1 * r / lever) per step (its spheres drift a tenth of a
 // radius off the linearised contact rows); in flight it keeps its spin. A
 // dumbbell of two 1 mm spheres 6 mm apart (lever 3 r) spinning at 2000 rad/s
 // about the vertical, one lying on a frictionless plane (no torque: only the
@@ -233,7 +234,7 @@ TEST(Engine, ClumpSpinIsCappedOnlyInContact) {
   const double r = 1e-3, spin = 2000.0;
   w.add_particle(1, r, 0, Vec3(0, r, 0), Quat::Identity(), Vec3::Zero(), Vec3(0, spin, 0));
   w.add_particle(1, r, 0, Vec3(0, 1.0, 0), Quat::Identity(), Vec3::Zero(), Vec3(0, spin, 0));
-  const double cap = std::sqrt(2.0 * 0.25 / 3.0) / m->step;
+  const double cap = std::sqrt(2.0 * 0.1 / 3.0) / m->step;
   EXPECT_EQ(w.step().spin_limited, 1u);
   EXPECT_NEAR(w.particles().angular_velocity[0].norm(), cap, 1e-9 * cap);
   EXPECT_NEAR(w.particles().angular_velocity[1].norm(), spin, 1e-12 * spin);
@@ -242,8 +243,8 @@ TEST(Engine, ClumpSpinIsCappedOnlyInContact) {
 // The cap's purpose: a dumbbell (two 1 mm spheres, centres 6 mm apart)
 // tumbling at 450 rad/s onto a plane at a 10 ms step (4.5 rad a step). Its
 // spheres' rows are linear in the step's motion, so uncapped a sphere ended
-// 0.66 radii inside the plane; capped 0.03. Bound: a quarter radius (the
-// cap's drift).
+// 0.66 radii inside the plane; capped (at a quarter radius of drift) 0.03.
+// Bound: a quarter radius.
 TEST(Engine, TumblingClumpStaysOutOfThePlane) {
   auto m = base_model({0.5}, 10e-3);
   m->shapes.push_back(make_particle_shape({Vec3(-3, 0, 0), Vec3(3, 0, 0)}, {1.0, 1.0}));
@@ -263,6 +264,57 @@ TEST(Engine, TumblingClumpStaysOutOfThePlane) {
   }
   EXPECT_GT(capped, 0u);
   EXPECT_LT(worst, 0.25);
+}
+
+// The nip of two rigid cylinders that touch (zero gap), both kinematic and
+// turning the same way, so that at the nip their surfaces move opposite:
+// the reference machine's drum (r 0.16 m, surface 0.75 m/s up at the nip)
+// and brush (r 0.053 m, 0.25 m/s down), at 20 times the machine's step
+// (10 ms, APGD 50 iterations). Flakes (19 spheres, 1.2 mm wide) fall
+// into the wedge above the nip at 1 m/s, standing in it on edge as the
+// scene's did; spheres ride the drum up into the wedge below it. Every
+// grain must stay out of both cylinders (docs/accuracy.md, section 4):
+// bound half a radius. Before the wall guard's sweeps were finished body
+// by body (CcpProblem::finish_walls) and the guards after the spin cap
+// left clumps' spin alone, a sphere went 4.5 radii into a cylinder here;
+// now 0.23.
+TEST(Engine, GrainsStayOutOfAZeroGapNipAtALargeStep) {
+  auto m = base_model({0.5}, 10e-3);
+  m->solver.max_iterations = 50;
+  m->solver.tolerance = 1e-6;
+  const feed::SphereList flake = feed::flake_spheres(0.2);
+  m->shapes.push_back(make_particle_shape(flake.centers, flake.radii));
+  const double R = 0.16, rb = 0.053, omega = 44.8 * 2.0 * kPi / 60.0;
+  RigidBody drum, brush;
+  drum.kind = brush.kind = BodyKind::Kinematic;
+  drum.shape = geo::Cylinder{R, 0.05, 0.0};
+  drum.motion.angular_speed = -omega;
+  brush.shape = geo::Cylinder{rb, 0.05, 0.0};
+  brush.pose.position = Vec3(-(R + rb), 0, 0);
+  brush.motion.center = brush.pose.position;
+  brush.motion.angular_speed = -omega;
+  m->bodies = {drum, brush};
+  World w(m);
+  // Flakes on edge (their plane facing the drum), centred on the bisector
+  // of the wedge where it is 0.5 to 1.5 mm wide, falling into it.
+  const Quat on_edge(Eigen::AngleAxisd(0.5 * kPi, Vec3::UnitY()));
+  auto wedge_x = [&](double y) {  // midway between the two surfaces at height y
+    return 0.5 * (-std::sqrt(R * R - y * y) + (-(R + rb) + std::sqrt(rb * rb - y * y)));
+  };
+  for (int i = 0; i < 6; ++i) {
+    const double y = 0.007 + 0.002 * i, z = -0.03 + 0.012 * i;
+    w.add_particle(1, 1.2e-3, 0, Vec3(wedge_x(y), y, z), on_edge, Vec3(0, -1.0, 0));
+  }
+  // Spheres (r 0.5 mm) on the drum below the nip, moving with its surface.
+  for (int i = 0; i < 6; ++i) {
+    const double r = 0.5e-3, a = kPi + 0.06 + 0.02 * i, z = -0.03 + 0.012 * i;
+    const Vec3 c((R + r) * std::cos(a), (R + r) * std::sin(a), z);
+    w.add_particle(0, r, 0, c, Quat::Identity(), Vec3(0, omega * R, 0));
+  }
+  double worst = 0.0;
+  for (int i = 0; i < 40; ++i) worst = std::max(worst, w.step().max_wall_penetration_relative);
+  EXPECT_EQ(w.particles().size(), 12u);
+  EXPECT_LE(worst, 0.5) << "radii into a cylinder";
 }
 
 TEST(Engine, SlidingSphereEndsRollingAtFiveSevenths) {

@@ -635,24 +635,31 @@ SolveStats CcpProblem::solve_pgs(Span x, const SolverSettings& s, SolverWorkspac
 // and the push-out of an overlap at the recovery speed. Contacts between
 // particles, and with dynamic bodies, are left to the solver.
 std::size_t CcpProblem::guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
-                                    double tolerance, int sweeps) const {
+                                    double tolerance, int sweeps,
+                                    const std::vector<std::uint8_t>* locked) const {
   const SolverBodies& B = *bodies_;
-  return guard_rows(x, v, w, tolerance, sweeps, [&](std::size_t a, std::size_t b) {
-    return B.inv_mass[a] == 0.0 && B.inv_mass[b] != 0.0;
-  });
+  return guard_rows(
+      x, v, w, tolerance, sweeps,
+      [&](std::size_t a, std::size_t b) { return B.inv_mass[a] == 0.0 && B.inv_mass[b] != 0.0; },
+      locked);
 }
 
 std::size_t CcpProblem::guard_bodies(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
                                      const std::vector<std::uint8_t>& flagged, double tolerance,
-                                     int sweeps) const {
-  return guard_rows(x, v, w, tolerance, sweeps,
-                    [&](std::size_t a, std::size_t b) { return flagged[a] || flagged[b]; });
+                                     int sweeps, const std::vector<std::uint8_t>* locked) const {
+  return guard_rows(
+      x, v, w, tolerance, sweeps,
+      [&](std::size_t a, std::size_t b) { return flagged[a] || flagged[b]; }, locked);
 }
 
 template <class Selected>
 std::size_t CcpProblem::guard_rows(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
-                                   double tolerance, int sweeps, Selected selected) const {
+                                   double tolerance, int sweeps, Selected selected,
+                                   const std::vector<std::uint8_t>* locked) const {
   const SolverBodies& B = *bodies_;
+  // A locked body takes the correction in translation only (its turn, the
+  // angular terms, left as they are).
+  auto turns = [&](std::size_t i) { return locked == nullptr || !(*locked)[i]; };
   std::size_t corrections = 0;
   for (int sweep = 0; sweep < sweeps; ++sweep) {
     std::size_t made = 0;
@@ -664,15 +671,16 @@ std::size_t CcpProblem::guard_rows(Span x, std::vector<Vec3>& v, std::vector<Vec
       const double deficit = -bias_[k] - vn;
       if (!(deficit > tolerance)) continue;  // (also skips a NaN)
       const Vec3 ca = ra.cross(n), cb = rb.cross(n);
-      const double k_eff = B.inv_mass[a] + ca.dot(B.inv_inertia[a] * ca) + B.inv_mass[b] +
-                           cb.dot(B.inv_inertia[b] * cb);
+      const bool turn_a = turns(a), turn_b = turns(b);
+      const double k_eff = B.inv_mass[a] + (turn_a ? ca.dot(B.inv_inertia[a] * ca) : 0.0) +
+                           B.inv_mass[b] + (turn_b ? cb.dot(B.inv_inertia[b] * cb) : 0.0);
       if (!(k_eff > 0.0)) continue;
       const double d = deficit / k_eff;
       x[3 * k] += d;
       v[a] -= B.inv_mass[a] * d * n;
-      w[a] -= B.inv_inertia[a] * (d * ca);
+      if (turn_a) w[a] -= B.inv_inertia[a] * (d * ca);
       v[b] += B.inv_mass[b] * d * n;
-      w[b] += B.inv_inertia[b] * (d * cb);
+      if (turn_b) w[b] += B.inv_inertia[b] * (d * cb);
       ++made;
     }
     corrections += made;
@@ -724,6 +732,48 @@ std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std:
     ++released;
   }
   return released;
+}
+
+CcpProblem::WallFinish CcpProblem::finish_walls(Span x, std::vector<Vec3>& v,
+                                                std::vector<Vec3>& w, double tolerance,
+                                                int max_sweeps,
+                                                const std::vector<std::uint8_t>* locked) const {
+  const SolverBodies& B = *bodies_;
+  WallFinish out;
+  auto wall_row = [&](std::uint32_t e) {
+    const std::size_t k = e >> 1;
+    return (e & 1) && B.inv_mass[std::size_t(a_[k])] == 0.0;
+  };
+  for (std::size_t b = 0; b < B.inv_mass.size(); ++b) {
+    const std::uint32_t first = adj_.offset[b], last = adj_.offset[b + 1];
+    bool violated = false;
+    for (std::uint32_t e = first; e < last && !violated; ++e)
+      violated = wall_row(adj_.entry[e]) && -row_of(adj_.entry[e] >> 1, v, w) > tolerance;
+    if (!violated) continue;
+    ++out.bodies;
+    const bool turn = locked == nullptr || !(*locked)[b];
+    bool done = false;
+    for (int sweep = 0; sweep < max_sweeps && !done; ++sweep) {
+      done = true;
+      for (std::uint32_t e = first; e < last; ++e) {
+        if (!wall_row(adj_.entry[e])) continue;
+        const std::size_t k = adj_.entry[e] >> 1;
+        const double deficit = -row_of(k, v, w);
+        if (!(deficit > tolerance)) continue;  // (also skips a NaN)
+        const Vec3 n = wide(n_[k]), cb = wide(rb_[k]).cross(n);
+        const double k_eff = B.inv_mass[b] + (turn ? cb.dot(B.inv_inertia[b] * cb) : 0.0);
+        if (!(k_eff > 0.0)) continue;
+        const double d = deficit / k_eff;
+        x[3 * k] += d;
+        v[b] += B.inv_mass[b] * d * n;
+        if (turn) w[b] += B.inv_inertia[b] * (d * cb);
+        ++out.corrections;
+        done = false;
+      }
+    }
+    if (!done) ++out.unconverged;
+  }
+  return out;
 }
 
 double CcpProblem::row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const {

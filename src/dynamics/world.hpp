@@ -44,6 +44,10 @@ struct StepStats {
   // on every step, the wall rows left violated that the wall guard finished.
   double impulse_scale = 1.0;
   std::size_t wall_corrections = 0;
+  // Bodies whose wall rows the guard's first sweeps left violated and whose
+  // sweeps went on, body by body, until they held (World::finish_walls);
+  // and of them, those still violated after the sweeps' cap.
+  std::size_t walls_finished = 0, walls_unfinished = 0;
   // Bodies whose wall impulses were scaled down to take the relaxed cone's
   // lift back (every step; CcpProblem::release_sliding_walls).
   std::size_t sliding_releases = 0;
@@ -99,6 +103,7 @@ class World {
   void dem_contacts(StepStats& stats);
   void make_safe(StepStats& stats);
   void limit_spin(StepStats& stats);
+  void finish_walls(StepStats& stats, const std::vector<std::uint8_t>* locked = nullptr);
   void release_sliding(StepStats& stats);
   void integrate(double h);
   void remember_impulses();
@@ -111,6 +116,7 @@ class World {
   std::vector<double> max_turn_;        // per shape: rad per step in contact (limit_spin)
   std::vector<std::uint8_t> touching_;  // per particle: has a contact this step
   std::vector<std::uint8_t> capped_;    // per solver body: spin capped this step
+  std::vector<std::uint8_t> locked_;    // per solver body: guarded in translation only
   bool has_clumps_ = false;
   double time_ = 0.0;
   std::uint64_t next_id_ = 0;

@@ -45,6 +45,8 @@ void StepLog::record(const StepStats& s, double wall_seconds) {
       std::max(sum_.max_wall_penetration_relative, s.max_wall_penetration_relative);
   if (s.impulse_scale < 1.0) ++sum_.steps_impulses_scaled;
   sum_.wall_corrections += s.wall_corrections;
+  sum_.walls_finished += s.walls_finished;
+  sum_.walls_unfinished += s.walls_unfinished;
   sum_.sliding_releases += s.sliding_releases;
   sum_.spin_limited += s.spin_limited;
   sum_.max_joint_drift = std::max(sum_.max_joint_drift, s.joint_drift);

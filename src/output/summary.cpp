@@ -111,6 +111,8 @@ Json solver_json(const RunRecord& r) {
           {"max_wall_penetration_relative", s.max_wall_penetration_relative},
           {"steps_impulses_scaled", s.steps_impulses_scaled},
           {"wall_guard_corrections", s.wall_corrections},
+          {"wall_guard_bodies_finished", s.walls_finished},
+          {"wall_guard_bodies_unfinished", s.walls_unfinished},
           {"sliding_releases", s.sliding_releases},
           {"spin_limited", s.spin_limited},
           {"joint_drift_max_m", s.max_joint_drift},
