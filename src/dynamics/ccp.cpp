@@ -760,7 +760,7 @@ CcpProblem::WallFinish CcpProblem::finish_walls(Span x, std::vector<Vec3>& v,
         const std::size_t k = adj_.entry[e] >> 1;
         const double deficit = -row_of(k, v, w);
         if (!(deficit > tolerance)) continue;  // (also skips a NaN)
-        const Vec3 n = wide(n_[k]), cb = wide(rb_[k]).cross(n);
+        const Vec3 n = normal(k), cb = lever_b(k).cross(n);
         const double k_eff = B.inv_mass[b] + (turn ? cb.dot(B.inv_inertia[b] * cb) : 0.0);
         if (!(k_eff > 0.0)) continue;
         const double d = deficit / k_eff;
