@@ -744,13 +744,20 @@ CcpProblem::WallFinish CcpProblem::finish_walls(Span x, std::vector<Vec3>& v,
     const std::size_t k = e >> 1;
     return (e & 1) && B.inv_mass[std::size_t(a_[k])] == 0.0;
   };
-  for (std::size_t b = 0; b < B.inv_mass.size(); ++b) {
+  // Bodies are independent here (a wall row moves one body only), so they
+  // run in parallel with the same bits for any thread count.
+  const auto nb = std::ptrdiff_t(B.inv_mass.size());
+  std::size_t bodies = 0, corrections = 0, unconverged = 0;
+#pragma omp parallel for schedule(dynamic, 512) if (nb > kParallelMin) \
+    reduction(+ : bodies, corrections, unconverged)
+  for (std::ptrdiff_t sb = 0; sb < nb; ++sb) {
+    const auto b = std::size_t(sb);
     const std::uint32_t first = adj_.offset[b], last = adj_.offset[b + 1];
     bool violated = false;
     for (std::uint32_t e = first; e < last && !violated; ++e)
       violated = wall_row(adj_.entry[e]) && -row_of(adj_.entry[e] >> 1, v, w) > tolerance;
     if (!violated) continue;
-    ++out.bodies;
+    ++bodies;
     const bool turn = locked == nullptr || !(*locked)[b];
     bool done = false;
     for (int sweep = 0; sweep < max_sweeps && !done; ++sweep) {
@@ -767,12 +774,15 @@ CcpProblem::WallFinish CcpProblem::finish_walls(Span x, std::vector<Vec3>& v,
         x[3 * k] += d;
         v[b] += B.inv_mass[b] * d * n;
         if (turn) w[b] += B.inv_inertia[b] * (d * cb);
-        ++out.corrections;
+        ++corrections;
         done = false;
       }
     }
-    if (!done) ++out.unconverged;
+    if (!done) ++unconverged;
   }
+  out.bodies = bodies;
+  out.corrections = corrections;
+  out.unconverged = unconverged;
   return out;
 }
 
