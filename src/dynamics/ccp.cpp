@@ -343,12 +343,11 @@ CcpProblem::TrialSums& CcpProblem::TrialSums::operator+=(const TrialSums& o) {
   return *this;
 }
 
-double CcpProblem::apgd_step(ConstSpan x, Span x1, ConstSpan gx, ConstSpan g1, Span y, Span gy,
-                             Span best, const Momentum* momentum, double step) const {
+double CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx, ConstSpan g_old,
+                             Span y, Span gy, const Momentum* momentum, double step) const {
   const std::size_t nc = a_.size();
   impulse_.resize(mu_.size());  // whole blocks
   const double ca = momentum ? momentum->ca : 1.0, cb = momentum ? momentum->cb : 0.0;
-  const bool keep = momentum && momentum->keep;
   const auto chunks = std::ptrdiff_t((nc + kReduceChunk - 1) / kReduceChunk);
   static thread_local std::vector<double> buffer;  // as in reduce()
   std::vector<double>& partial = buffer;
@@ -371,9 +370,7 @@ double CcpProblem::apgd_step(ConstSpan x, Span x1, ConstSpan gx, ConstSpan g1, S
       double* py = full ? y.data() + i0 : pad[4];
       double* pgy = full ? gy.data() + i0 : pad[5];
       if (momentum) {
-        const double *pold = in(ConstSpan(x1.data(), x1.size()), 1), *pgx = in(gx, 2),
-                     *pgold = in(g1, 3);
-        if (keep) std::copy_n(px, rows, best.data() + i0);
+        const double *pold = in(x_old, 1), *pgx = in(gx, 2), *pgold = in(g_old, 3);
         for (std::size_t j = 0; j < 12; j += 4) {
           store(py + j, ca * load(px + j) - cb * load(pold + j));
           store(pgy + j, ca * load(pgx + j) - cb * load(pgold + j));
@@ -413,9 +410,8 @@ double CcpProblem::apgd_step(ConstSpan x, Span x1, ConstSpan gx, ConstSpan g1, S
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const std::size_t i = 3 * nc + j;
     if (momentum) {
-      if (keep) best[i] = x[i];
-      y[i] = ca * x[i] - cb * x1[i];
-      gy[i] = ca * gx[i] - cb * g1[i];
+      y[i] = ca * x[i] - cb * x_old[i];
+      gy[i] = ca * gx[i] - cb * g_old[i];
     }
     gy_dot_x += gy[i] * x[i];
     x1[i] = std::clamp(y[i] - step * gy[i], rows_[j].lo, rows_[j].hi);

@@ -179,16 +179,15 @@ class CcpProblem {
   // APGD's iteration in two streaming passes over the contacts (and one
   // over the bodies), four contacts to a SIMD vector (solve_apgd; ccp.cpp).
   // The first: x1 = Π(y - step gy). With `momentum`, y and gy are first
-  // made from the last two iterates (y = ca x - cb x1, gy = ca gx - cb g1,
-  // x1 and g1 still holding the older ones) and, if momentum->keep, best
-  // takes x. It keeps the contacts' world impulses for the second pass and
-  // returns gy.x, which the second would otherwise read x again for.
+  // made from the last two iterates, y = ca x - cb x_old and gy = ca gx -
+  // cb g_old (x1 may be x_old's buffer, g_old g1's: each row is read before
+  // it is written). It keeps the contacts' world impulses for the second
+  // pass and returns gy.x, which the second would otherwise read x again for.
   struct Momentum {
     double ca, cb;
-    bool keep;
   };
-  double apgd_step(ConstSpan x, Span x1, ConstSpan gx, ConstSpan g1, Span y, Span gy, Span best,
-                   const Momentum* momentum, double step) const;
+  double apgd_step(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx, ConstSpan g_old, Span y,
+                   Span gy, const Momentum* momentum, double step) const;
   // The second: g1 = N x1 + r at apgd_step's x1, and the sums an APGD
   // iteration decides on (uphill = gy.(x1 - x)), added in fixed chunks as
   // reduce() adds them.

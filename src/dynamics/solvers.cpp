@@ -44,33 +44,39 @@ struct Best {
 SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, SolverWorkspace& ws) {
   const std::size_t m = p.row_count();
   if (m == 0) return {0, 0.0, 0.0, true};
-  // x and x1, and their gradients, trade buffers each iteration (no copies).
-  Span x = ws.take(0, m), gx = ws.take(1, m), x1 = ws.take(2, m), g1 = ws.take(3, m);
-  const Span y = ws.take(4, m), gy = ws.take(5, m), best = ws.take(6, m), probe = ws.take(7, m);
+  // Three buffers hold the iterate x, the one before it (x_old) and a spare;
+  // the best iterate is kept where it lies (best_in) instead of copied, and
+  // a trial point goes where it overwrites neither it nor x. The gradients
+  // of x and of the trial trade two buffers.
+  Span x = ws.take(0, m), x_old = ws.take(2, m), spare = ws.take(6, m);
+  Span gx = ws.take(1, m), g1 = ws.take(3, m);
+  const Span y = ws.take(4, m), gy = ws.take(5, m), probe = ws.take(7, m);
+  enum class Where { x, x_old, spare } best_in = Where::spare;
   const double inv_s = p.diagonal_max();
   copy(out, x);
   p.gradient(x, gx);
   copy(x, y);
   copy(gx, gy);
-  copy(x, best);
+  copy(x, spare);  // the best until an iterate improves on it
   // Initial Lipschitz estimate: |N u| / |u| along u = (1, ..., 1).
   std::fill(probe.begin(), probe.end(), 1.0);
-  p.multiply(probe, x1);
-  double L = std::max(std::sqrt(dot(x1, x1) / double(m)), 1e-12 * inv_s);
+  p.multiply(probe, x_old);
+  double L = std::max(std::sqrt(dot(x_old, x_old) / double(m)), 1e-12 * inv_s);
   const double L_cap = 1e3 * inv_s * double(m);
   double theta = 1.0;
   Best record;
-  // The momentum step y = ca x1 - cb x (and gy alike) of an iteration is
-  // made in the next one's first projected step, and best takes the
-  // iterate then: one pass over the rows less. At the start y, gy are x, gx.
-  CcpProblem::Momentum momentum{1.0, 0.0, false};
+  // The momentum step y = ca x - cb x_old (and gy alike) of an iteration is
+  // made in the next one's first projected step: one pass over the rows
+  // less. At the start y, gy are x, gx.
+  CcpProblem::Momentum momentum{1.0, 0.0};
   bool extrapolate = false;
   int it = 0;
   for (; it < s.max_iterations; ++it) {
     CcpProblem::TrialSums t;
+    const Span x1 = best_in == Where::x_old ? spare : x_old;
     for (bool first = true;; first = false) {
-      const double gy_x =
-          p.apgd_step(x, x1, gx, g1, y, gy, best, first && extrapolate ? &momentum : nullptr, 1.0 / L);
+      const double gy_x = p.apgd_step(x, x_old, x1, gx, g1, y, gy,
+                                      first && extrapolate ? &momentum : nullptr, 1.0 / L);
       t = p.apgd_gradient(x1, g1, y, gy, gy_x);
       if (t.dnd <= L * t.dd * (1.0 + 1e-10) || L > L_cap) break;
       L *= 2.0;
@@ -83,8 +89,8 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
       copy(x1, out);
       return record.stats;
     }
-    momentum.keep = record.improves(rms);
-    if (momentum.keep) record.take(rms, t.res_max);
+    const bool improves = record.improves(rms);
+    if (improves) record.take(rms, t.res_max);
     const double theta1 = 0.5 * (-theta * theta + theta * std::sqrt(theta * theta + 4.0));
     const double beta = theta * (1.0 - theta) / (theta * theta + theta1);
     const bool restart = t.uphill > 0.0;  // momentum points uphill
@@ -92,12 +98,20 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
     momentum.ca = restart ? 1.0 : 1.0 + beta;
     momentum.cb = restart ? 0.0 : beta;
     extrapolate = true;
-    std::swap(x, x1);  // the accepted iterate becomes x; x1's buffer is free
+    // The trial is accepted: it becomes x, x becomes x_old, and the buffer
+    // left over is the spare.
+    if (x1.data() == spare.data()) std::swap(spare, x_old);  // x_old's buffer is left over
+    std::swap(x_old, x);
+    x = x1;
+    best_in = improves                    ? Where::x
+              : best_in == Where::x       ? Where::x_old
+              : best_in == Where::x_old   ? Where::spare
+                                          : Where::spare;
     std::swap(gx, g1);
     L *= 0.9;
   }
   record.stats.iterations = it;
-  copy(momentum.keep ? x : best, out);  // the last iterate, if it was the best
+  copy(best_in == Where::x ? x : best_in == Where::x_old ? x_old : spare, out);
   return record.stats;
 }
 
