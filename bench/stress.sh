@@ -24,7 +24,7 @@ import json, sys
 j = json.load(open(sys.argv[1])); s = j["solver"]; e = j["energy"]; b = j["balance"]
 gain = e["max_gain_relative"]
 print(f"{sys.argv[2]:18s} complete={j['complete']} wall={j['wall_time_s']['total']:.0f}s "
-      f"particles={b['fed']['count']} through_wall={b['lost_by_reason']['left domain']['count']} "
+      f"particles={b['fed']['count']} left_domain={b['lost_by_reason']['left domain']['count']} "
       f"non_finite={b['lost_by_reason']['non-finite state']['count']} balance_exact={b['exact']} penetration={100 * s['max_penetration_relative']:.2f}% "
       f"wall_penetration={100 * s['max_wall_penetration_relative']:.2f}% "
       f"energy_gain={gain if isinstance(gain, str) else f'{100 * gain:.3g}%'} "

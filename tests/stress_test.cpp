@@ -129,12 +129,12 @@ const StressCase kPassing[] = {
     // overlap each other by up to 1.5 radii (reported), none is in the drum
     // by more than a radius (World::limit_spin keeps flakes from turning by
     // radians within a step; 2.2 radii, centres inside the drum, without
-    // it). The full 2 s run (2.5 minutes, not in CI) passes as well at the
-    // scene's seed: 0.79 radii at worst; it failed at 5.3, flakes sunk into
-    // the drum at the brush nip, before the wall guard's sweeps were
-    // finished body by body (docs/accuracy.md, section 4; the nip itself is
-    // in engine_test.cpp). At seed 2 one flake still tunnels into the drum,
-    // pulled by its image charge faster than the envelope allows (ibid.).
+    // it). The full 2 s run (80 s on two threads, not in CI) passes as well,
+    // at seeds 1 and 2: 0.78 radii at worst; it failed at 5.3, flakes sunk
+    // into the drum at the brush nip, before the wall guard's sweeps were
+    // finished body by body, and at seed 2 with a flake pulled into the
+    // drum by its image charge faster than the envelope then allowed
+    // (docs/accuracy.md, section 4; the nip itself is in engine_test.cpp).
     {"step_10ms", "step_10ms.yaml", "--set time.end=0.1s --set feeds.nozzle.duration=0.05s", true,
      false},
 };
