@@ -103,10 +103,8 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
     if (x1.data() == spare.data()) std::swap(spare, x_old);  // x_old's buffer is left over
     std::swap(x_old, x);
     x = x1;
-    best_in = improves                    ? Where::x
-              : best_in == Where::x       ? Where::x_old
-              : best_in == Where::x_old   ? Where::spare
-                                          : Where::spare;
+    // A best that was in x_old is now in the spare: x1 went elsewhere.
+    best_in = improves ? Where::x : best_in == Where::x ? Where::x_old : Where::spare;
     std::swap(gx, g1);
     L *= 0.9;
   }
