@@ -275,7 +275,7 @@ TEST(Engine, TumblingClumpStaysOutOfThePlane) {
 // scene's did; spheres ride the drum up into the wedge below it. Every
 // grain must stay out of both cylinders (docs/accuracy.md, section 4):
 // bound half a radius. Before the wall guard's sweeps were finished body
-// by body (CcpProblem::finish_walls) and the guards after the spin cap
+// by body (CcpProblem::guard_walls) and the guards after the spin cap
 // left clumps' spin alone, a sphere went 4.5 radii into a cylinder here;
 // now 0.23.
 TEST(Engine, GrainsStayOutOfAZeroGapNipAtALargeStep) {

@@ -630,28 +630,9 @@ SolveStats CcpProblem::solve_pgs(Span x, const SolverSettings& s, SolverWorkspac
 // targets above zero are the solver's own, a restitution rebound e |v_n|
 // and the push-out of an overlap at the recovery speed. Contacts between
 // particles, and with dynamic bodies, are left to the solver.
-std::size_t CcpProblem::guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
-                                    double tolerance, int sweeps,
-                                    const std::vector<std::uint8_t>* locked) const {
-  const SolverBodies& B = *bodies_;
-  return guard_rows(
-      x, v, w, tolerance, sweeps,
-      [&](std::size_t a, std::size_t b) { return B.inv_mass[a] == 0.0 && B.inv_mass[b] != 0.0; },
-      locked);
-}
-
 std::size_t CcpProblem::guard_bodies(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
                                      const std::vector<std::uint8_t>& flagged, double tolerance,
                                      int sweeps, const std::vector<std::uint8_t>* locked) const {
-  return guard_rows(
-      x, v, w, tolerance, sweeps,
-      [&](std::size_t a, std::size_t b) { return flagged[a] || flagged[b]; }, locked);
-}
-
-template <class Selected>
-std::size_t CcpProblem::guard_rows(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
-                                   double tolerance, int sweeps, Selected selected,
-                                   const std::vector<std::uint8_t>* locked) const {
   const SolverBodies& B = *bodies_;
   // A locked body takes the correction in translation only (its turn, the
   // angular terms, left as they are).
@@ -661,7 +642,7 @@ std::size_t CcpProblem::guard_rows(Span x, std::vector<Vec3>& v, std::vector<Vec
     std::size_t made = 0;
     for (std::size_t k = 0; k < a_.size(); ++k) {
       const auto a = std::size_t(a_[k]), b = std::size_t(b_[k]);
-      if (!selected(a, b)) continue;
+      if (!flagged[a] && !flagged[b]) continue;
       const Vec3 n = normal(k), ra = lever_a(k), rb = lever_b(k);
       const double vn = n.dot(point_velocity(v, w, b_[k], rb) - point_velocity(v, w, a_[k], ra));
       const double deficit = -bias_[k] - vn;
@@ -730,12 +711,11 @@ std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std:
   return released;
 }
 
-CcpProblem::WallFinish CcpProblem::finish_walls(Span x, std::vector<Vec3>& v,
-                                                std::vector<Vec3>& w, double tolerance,
-                                                int max_sweeps,
-                                                const std::vector<std::uint8_t>* locked) const {
+CcpProblem::WallGuard CcpProblem::guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
+                                              double tolerance, int first_sweeps, int max_sweeps,
+                                              const std::vector<std::uint8_t>* locked) const {
   const SolverBodies& B = *bodies_;
-  WallFinish out;
+  WallGuard out;
   auto wall_row = [&](std::uint32_t e) {
     const std::size_t k = e >> 1;
     return (e & 1) && B.inv_mass[std::size_t(a_[k])] == 0.0;
@@ -753,9 +733,8 @@ CcpProblem::WallFinish CcpProblem::finish_walls(Span x, std::vector<Vec3>& v,
     for (std::uint32_t e = first; e < last && !violated; ++e)
       violated = wall_row(adj_.entry[e]) && -row_of(adj_.entry[e] >> 1, v, w) > tolerance;
     if (!violated) continue;
-    ++bodies;
     const bool turn = locked == nullptr || !(*locked)[b];
-    bool done = false;
+    bool done = false, beyond = false;  // corrected after the first sweeps
     for (int sweep = 0; sweep < max_sweeps && !done; ++sweep) {
       done = true;
       for (std::uint32_t e = first; e < last; ++e) {
@@ -772,8 +751,10 @@ CcpProblem::WallFinish CcpProblem::finish_walls(Span x, std::vector<Vec3>& v,
         if (turn) w[b] += B.inv_inertia[b] * (d * cb);
         ++corrections;
         done = false;
+        beyond = beyond || sweep >= first_sweeps;
       }
     }
+    bodies += beyond;
     if (!done) ++unconverged;
   }
   out.bodies = bodies;

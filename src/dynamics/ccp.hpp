@@ -125,32 +125,27 @@ class CcpProblem {
   // The wall guard, after a solve (world.cpp): for each contact of a
   // particle with a body of infinite mass (a wall, the drum, a mesh) whose
   // row v_n + b >= 0 the solved impulses x leave violated by more than
-  // `tolerance` (m/s), adds the normal impulse that satisfies it, in up to
-  // `sweeps` Gauss-Seidel sweeps over those contacts, into x and into the
-  // velocities v, w (which must be those of x). Returns how many
-  // corrections it made. See ccp.cpp.
+  // `tolerance` (m/s), adds the normal impulse that satisfies it, in
+  // Gauss-Seidel sweeps over those contacts, into x and into the
+  // velocities v, w (which must be those of x). See ccp.cpp.
   // A body flagged in `locked` (per solver body) takes its corrections in
   // translation only: its spin is left as it is (World::limit_spin).
-  std::size_t guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w, double tolerance,
-                          int sweeps, const std::vector<std::uint8_t>* locked = nullptr) const;
-
-  // The wall guard's sweeps run to convergence, body by body. A wall has
-  // infinite mass, so the guard's rows of one particle are a problem of
-  // their own; but Gauss-Seidel on two rows whose normals are nearly
-  // opposite (a grain in the nip of two surfaces, a narrow wedge) gains only
-  // a fraction sin^2 of the angle between them per sweep, and guard_walls'
-  // few sweeps left grains in the brush nip 5 radii inside the drum
-  // (docs/accuracy.md, section 4). For each body one of whose wall rows is
-  // still violated by more than `tolerance`, the same sweeps go on over its
-  // wall rows alone until none is, at most `max_sweeps` times. Into x, v, w
-  // (which must be those of x, as for guard_walls).
-  struct WallFinish {
+  //
+  // A wall has infinite mass, so the guard's rows of one particle are a
+  // problem of their own: the sweeps run body by body, in parallel, until
+  // none of the body's rows is violated, at most `max_sweeps` times.
+  // Gauss-Seidel on two rows whose normals are nearly opposite (a grain in
+  // the nip of two surfaces, a narrow wedge) gains only a fraction sin^2 of
+  // the angle between them per sweep: four sweeps left grains in the brush
+  // nip 5 radii inside the drum (docs/accuracy.md, section 4).
+  struct WallGuard {
     std::size_t corrections = 0;  // rows corrected
-    std::size_t bodies = 0;       // bodies that needed it
+    std::size_t bodies = 0;       // bodies still violated after `first_sweeps`
     std::size_t unconverged = 0;  // of them, left violated after max_sweeps
   };
-  WallFinish finish_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w, double tolerance,
-                          int max_sweeps, const std::vector<std::uint8_t>* locked = nullptr) const;
+  WallGuard guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w, double tolerance,
+                        int first_sweeps, int max_sweeps,
+                        const std::vector<std::uint8_t>* locked = nullptr) const;
 
   // The same for every contact of a flagged body, whatever its partner
   // (the impulse shared by both bodies): after World::limit_spin changed
@@ -217,10 +212,6 @@ class CcpProblem {
   void gather_rows(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias,
                    Span y) const;
   double block_bound(std::size_t k) const;
-  template <class Selected>
-  std::size_t guard_rows(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w, double tolerance,
-                         int sweeps, Selected selected,
-                         const std::vector<std::uint8_t>* locked) const;
   // Contact k's normal row v_n + b at velocities v, w.
   double row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const;
 

@@ -35,8 +35,8 @@ Quat advance(const Quat& q, const Vec3& w, double h) {
 // touches two or three walls); the sliding release on rows lifting by more.
 constexpr double kGuardFactor = 10.0;
 constexpr int kGuardSweeps = 4;
-// Then, body by body, up to this many sweeps over the rows of each body left
-// violated (finish_walls).
+// Then up to this many more over the rows of each body still violated
+// (CcpProblem::guard_walls; stats.walls_finished counts those bodies).
 constexpr int kFinishSweeps = 20000;
 
 // A clump in contact turns by at most this much per step (limit_spin): its
@@ -263,7 +263,6 @@ const StepStats& World::step() {
 // The residual reported is then that of these impulses (the sliding
 // release after it changes them again, on purpose: not measured).
 void World::make_safe(StepStats& stats) {
-  const Model& m = *model_;
   std::vector<Vec3>& v = solver_bodies_.v;
   std::vector<Vec3>& w = solver_bodies_.w;
   const std::size_t rows = gamma_.size(), contact_rows = 3 * problem_.contact_count();
@@ -293,9 +292,7 @@ void World::make_safe(StepStats& stats) {
   }
   // Every step: a solve that converged by its RMS residual can still leave
   // one wall row violated.
-  stats.wall_corrections =
-      problem_.guard_walls(gamma_, v, w, kGuardFactor * m.solver.tolerance, kGuardSweeps);
-  if (stats.wall_corrections > 0) finish_walls(stats);
+  guard_walls(stats);
   if (stats.wall_corrections > 0) {
     problem_.velocities(gamma_, v, w);  // exactly those of the impulses
     changed = true;
@@ -356,20 +353,16 @@ void World::limit_spin(StepStats& stats) {
   locked_.assign(solver_bodies_.inv_mass.size(), 0);
   for (std::size_t i = 0; i < np; ++i)
     locked_[i] = touching_[i] && std::isfinite(max_turn_[std::size_t(particles_.shape[i])]);
-  const std::size_t corrections =
-      problem_.guard_bodies(gamma_, solver_bodies_.v, w, capped_, tolerance, kGuardSweeps,
-                            &locked_) +
-      problem_.guard_walls(gamma_, solver_bodies_.v, w, tolerance, kGuardSweeps, &locked_);
-  stats.wall_corrections += corrections;
-  if (corrections > 0) finish_walls(stats, &locked_);
+  stats.wall_corrections += problem_.guard_bodies(gamma_, solver_bodies_.v, w, capped_,
+                                                   tolerance, kGuardSweeps, &locked_);
+  guard_walls(stats, &locked_);
 }
 
-// The wall guard's sweeps, finished body by body where a few were not
-// enough (CcpProblem::finish_walls).
-void World::finish_walls(StepStats& stats, const std::vector<std::uint8_t>* locked) {
-  const CcpProblem::WallFinish f =
-      problem_.finish_walls(gamma_, solver_bodies_.v, solver_bodies_.w,
-                            kGuardFactor * model_->solver.tolerance, kFinishSweeps, locked);
+// The wall guard (CcpProblem::guard_walls), its counts into the stats.
+void World::guard_walls(StepStats& stats, const std::vector<std::uint8_t>* locked) {
+  const CcpProblem::WallGuard f = problem_.guard_walls(
+      gamma_, solver_bodies_.v, solver_bodies_.w, kGuardFactor * model_->solver.tolerance,
+      kGuardSweeps, kGuardSweeps + kFinishSweeps, locked);
   stats.wall_corrections += f.corrections;
   stats.walls_finished += f.bodies;
   stats.walls_unfinished += f.unconverged;

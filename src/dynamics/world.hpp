@@ -45,7 +45,7 @@ struct StepStats {
   double impulse_scale = 1.0;
   std::size_t wall_corrections = 0;
   // Bodies whose wall rows the guard's first sweeps left violated and whose
-  // sweeps went on, body by body, until they held (World::finish_walls);
+  // sweeps went on, body by body, until they held (CcpProblem::guard_walls);
   // and of them, those still violated after the sweeps' cap.
   std::size_t walls_finished = 0, walls_unfinished = 0;
   // Bodies whose wall impulses were scaled down to take the relaxed cone's
@@ -103,7 +103,7 @@ class World {
   void dem_contacts(StepStats& stats);
   void make_safe(StepStats& stats);
   void limit_spin(StepStats& stats);
-  void finish_walls(StepStats& stats, const std::vector<std::uint8_t>* locked = nullptr);
+  void guard_walls(StepStats& stats, const std::vector<std::uint8_t>* locked = nullptr);
   void release_sliding(StepStats& stats);
   void integrate(double h);
   void remember_impulses();
