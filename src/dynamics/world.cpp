@@ -31,9 +31,11 @@ Quat advance(const Quat& q, const Vec3& w, double h) {
 }
 
 // The wall guard acts on rows violated by more than this many solver
-// tolerances (m/s), in at most this many sweeps (a particle in a corner
-// touches two or three walls); the sliding release on rows lifting by more.
-constexpr double kGuardFactor = 10.0;
+// tolerances (m/s), but never less than kGuardFloor (below it rounding, not
+// the solve, decides a row's sign: at tolerance 0 the guard's sweeps chased
+// rounding), in at most this many sweeps (a particle in a corner touches
+// two or three walls); the sliding release on rows lifting by more.
+constexpr double kGuardFactor = 10.0, kGuardFloor = 1e-12;
 constexpr int kGuardSweeps = 4;
 // Then up to this many more over the rows of each body still violated
 // (CcpProblem::guard_walls; stats.walls_finished counts those bodies).
@@ -309,7 +311,7 @@ void World::release_sliding(StepStats& stats) {
   std::vector<Vec3>& v = solver_bodies_.v;
   std::vector<Vec3>& w = solver_bodies_.w;
   stats.sliding_releases =
-      problem_.release_sliding_walls(gamma_, v, w, kGuardFactor * model_->solver.tolerance);
+      problem_.release_sliding_walls(gamma_, v, w, guard_tolerance());
   if (stats.sliding_releases > 0) problem_.velocities(gamma_, v, w);  // exactly those of x
 }
 
@@ -346,7 +348,7 @@ void World::limit_spin(StepStats& stats) {
   }
   if (stats.spin_limited == 0) return;
   // Their partners move too: the walls' rows of everyone last.
-  const double tolerance = kGuardFactor * model_->solver.tolerance;
+  const double tolerance = guard_tolerance();
   // The guards after the cap move clumps in contact in translation only: a
   // normal impulse on a sphere at the rim of a flake would spin it past the
   // cap again (to 200-300 rad/s at 10 ms, cap 35: 3 radii into the drum).
@@ -358,10 +360,14 @@ void World::limit_spin(StepStats& stats) {
   guard_walls(stats, &locked_);
 }
 
+double World::guard_tolerance() const {
+  return std::max(kGuardFactor * model_->solver.tolerance, kGuardFloor);
+}
+
 // The wall guard (CcpProblem::guard_walls), its counts into the stats.
 void World::guard_walls(StepStats& stats, const std::vector<std::uint8_t>* locked) {
   const CcpProblem::WallGuard f = problem_.guard_walls(
-      gamma_, solver_bodies_.v, solver_bodies_.w, kGuardFactor * model_->solver.tolerance,
+      gamma_, solver_bodies_.v, solver_bodies_.w, guard_tolerance(),
       kGuardSweeps, kGuardSweeps + kFinishSweeps, locked);
   stats.wall_corrections += f.corrections;
   stats.walls_finished += f.bodies;

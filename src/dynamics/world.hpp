@@ -104,6 +104,7 @@ class World {
   void make_safe(StepStats& stats);
   void limit_spin(StepStats& stats);
   void guard_walls(StepStats& stats, const std::vector<std::uint8_t>* locked = nullptr);
+  double guard_tolerance() const;  // m/s
   void release_sliding(StepStats& stats);
   void integrate(double h);
   void remember_impulses();
