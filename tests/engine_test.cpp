@@ -633,29 +633,23 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   p.assemble(c, B, {row}, 1e-3, ContactSettings{});
   const std::size_t m = p.row_count();
   ASSERT_EQ(m, 34u);
-  std::vector<double> x(m), x1(m), gx(m), g1(m), y(m), gy(m), plain(m), g(m);
+  std::vector<double> x(m), x_old(m), x1(m), gx(m), g_old(m), g1(m), y(m), gy(m), plain(m), g(m);
   for (std::size_t i = 0; i < m; ++i) {
     x[i] = uniform();
-    x1[i] = uniform();
+    x_old[i] = uniform();
     gx[i] = uniform();
-    g1[i] = uniform();
+    g_old[i] = uniform();
   }
   const double step = 0.3, ca = 1.7, cb = 0.7;
-  std::vector<double> y_plain(m), gy_plain(m);
   for (std::size_t i = 0; i < m; ++i) {
-    y_plain[i] = ca * x[i] - cb * x1[i];
-    gy_plain[i] = ca * gx[i] - cb * g1[i];
+    y[i] = ca * x[i] - cb * x_old[i];
+    gy[i] = ca * gx[i] - cb * g_old[i];
   }
-  p.projected_step(y_plain, gy_plain, step, plain);
+  p.projected_step(y, gy, step, plain);
   const CcpProblem::Momentum momentum{ca, cb};
-  // In place, as the solver does: x1 holds the older iterate until its row is made.
-  const double gy_x = p.apgd_step(x, x1, x1, gx, g1, y, gy, &momentum, step);
-  for (std::size_t i = 0; i < m; ++i) {
-    ASSERT_EQ(y[i], y_plain[i]) << i;
-    ASSERT_EQ(gy[i], gy_plain[i]) << i;
-    ASSERT_EQ(x1[i], plain[i]) << i;
-  }
-  const CcpProblem::TrialSums t = p.apgd_gradient(x1, g1, y, gy, gy_x);
+  CcpProblem::TrialSums t = p.apgd_step(x, x_old, x1, gx, g_old, momentum, step);
+  for (std::size_t i = 0; i < m; ++i) ASSERT_EQ(x1[i], plain[i]) << i;
+  p.apgd_gradient(x1, g1, x, x_old, momentum, t);
   p.gradient(x1, g);
   double scale = 0.0;
   for (double v : g) scale = std::max(scale, std::abs(v));
@@ -676,6 +670,13 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   EXPECT_NEAR(std::sqrt(t.res_sum / double(m)), rms, 1e-12 * rms);
   EXPECT_NEAR(t.res_max, max, 1e-12 * max);
   EXPECT_GT(dd * std::abs(dnd) * rms, 0.0);  // nothing trivially zero
+  // Without momentum y = x, gy = gx, and x_old, g_old are not read.
+  const std::vector<double> nan(m, std::numeric_limits<double>::quiet_NaN());
+  p.projected_step(x, gx, step, plain);
+  t = p.apgd_step(x, nan, x1, gx, nan, {}, step);
+  for (std::size_t i = 0; i < m; ++i) ASSERT_EQ(x1[i], plain[i]) << i;
+  p.apgd_gradient(x1, g1, x, nan, {}, t);
+  EXPECT_TRUE(std::isfinite(t.dd + t.dnd + t.uphill + t.res_sum + t.res_max));
 }
 
 // A 10-layer stack (3 x 3 spheres per layer) solved from rest without warm

@@ -268,6 +268,7 @@ namespace {
 
 using d4 = double __attribute__((vector_size(32)));
 using f4 = float __attribute__((vector_size(16)));
+constexpr std::size_t kVec = 4;  // lanes of d4: CcpProblem::kLanes
 
 [[gnu::always_inline]] inline d4 load(const double* p) {
   d4 v;
@@ -332,6 +333,124 @@ struct Rows {
   g.t2 = select(keep, g.t2, select(clear | frictionless, zero, g.t2 * scale));
 }
 
+// The rows 3 k0 .. 3 k0 + 11 of a block: pointers into the vectors for a
+// whole block, into zero-padded copies for the short last one (whose lanes
+// past the contacts then compute zeros).
+class BlockRows {
+ public:
+  BlockRows(std::size_t i0, std::size_t rows) : i0_(i0), rows_(rows) {}
+  bool full() const { return rows_ == 12; }
+  const double* in(ConstSpan v, int slot) {
+    if (full()) return v.data() + i0_;
+    std::fill_n(std::copy_n(v.data() + i0_, rows_, pad_[slot]), 12 - rows_, 0.0);
+    return pad_[slot];
+  }
+  double* out(Span v, int slot) { return full() ? v.data() + i0_ : pad_[slot]; }
+  void flush(Span v, int slot) const {
+    if (!full()) std::copy_n(pad_[slot], rows_, v.data() + i0_);
+  }
+
+ private:
+  std::size_t i0_, rows_;
+  double pad_[5][12];  // filled only for the short block
+};
+
+// Lane sums of a trial's dd, d.gy and uphill (CcpProblem::TrialSums).
+struct TrialLanes {
+  d4 dd = {}, d_gy = {}, uphill = {};
+};
+
+// One block of a trial (apgd_step): x1 = Π(y - step gy) into p1, with y =
+// ca x - cb x_old and gy = ca gx - cb g_old (pold, pgold unread when cb =
+// 0); adds its sums to `sums`. Returns the projected rows, lane = contact.
+[[gnu::always_inline]] inline Rows trial_block(const double* px, const double* pold,
+                                               const double* pgx, const double* pgold,
+                                               CcpProblem::Momentum mo, double step, d4 mu,
+                                               double* p1, TrialLanes& sums) {
+  d4 y[3], gy[3];
+  for (std::size_t j = 0; j < 3; ++j) {
+    y[j] = load(px + 4 * j);
+    gy[j] = load(pgx + 4 * j);
+    if (mo.cb != 0.0) {
+      y[j] = mo.ca * y[j] - mo.cb * load(pold + 4 * j);
+      gy[j] = mo.ca * gy[j] - mo.cb * load(pgold + 4 * j);
+    }
+    store(p1 + 4 * j, y[j] - step * gy[j]);
+  }
+  Rows r = load_rows(p1);
+  project_cone(mu, r);
+  store_rows(p1, r);
+  for (std::size_t j = 0; j < 3; ++j) {
+    const d4 v1 = load(p1 + 4 * j), d = v1 - y[j];
+    sums.dd += d * d;
+    sums.d_gy += d * gy[j];
+    sums.uphill += gy[j] * (v1 - load(px + 4 * j));
+  }
+  return r;
+}
+
+// World impulses n qn + t1 qt1 + t2 qt2 of a block (frame block f), component
+// by component, into 12 doubles.
+[[gnu::always_inline]] inline void store_impulses(const float* f, const Rows& r, double* out) {
+  Rows imp;
+  d4* c_out[3] = {&imp.n, &imp.t1, &imp.t2};  // x, y, z components
+  for (std::size_t c = 0; c < 3; ++c)
+    *c_out[c] = widen(f + c * kVec) * r.n + widen(f + (3 + c) * kVec) * r.t1 +
+                widen(f + (6 + c) * kVec) * r.t2;
+  store_rows(out, imp);
+}
+
+// g = J dv + b of a block's contacts: count (<= 4) contacts from a, b (body
+// indices), frame block f and bias; lane = contact, lanes past count zero.
+[[gnu::always_inline]] inline Rows gather_block(const float* f, const std::int32_t* a, const std::int32_t* b, std::size_t count,
+                  const std::vector<Vec3>& dv, const std::vector<Vec3>& dw, const double* bias) {
+  std::size_t ia[kVec], ib[kVec];
+  for (std::size_t l = 0; l < kVec; ++l) {
+    ia[l] = std::size_t(a[std::min(l, count - 1)]);
+    ib[l] = std::size_t(b[std::min(l, count - 1)]);
+  }
+  auto lanes = [&](const std::vector<Vec3>& v, const std::size_t* i, int c) {
+    return d4{v[i[0]][c], v[i[1]][c], v[i[2]][c], v[i[3]][c]};
+  };
+  // Relative velocity at the contact points, component by component.
+  d4 rel[3];
+  {
+    const d4 va[3] = {lanes(dv, ia, 0), lanes(dv, ia, 1), lanes(dv, ia, 2)};
+    const d4 wa[3] = {lanes(dw, ia, 0), lanes(dw, ia, 1), lanes(dw, ia, 2)};
+    const d4 vb[3] = {lanes(dv, ib, 0), lanes(dv, ib, 1), lanes(dv, ib, 2)};
+    const d4 wb[3] = {lanes(dw, ib, 0), lanes(dw, ib, 1), lanes(dw, ib, 2)};
+    const d4 ra[3] = {widen(f + 9 * kVec), widen(f + 10 * kVec), widen(f + 11 * kVec)};
+    const d4 rb[3] = {widen(f + 12 * kVec), widen(f + 13 * kVec), widen(f + 14 * kVec)};
+    for (int c = 0; c < 3; ++c) {
+      const int c1 = (c + 1) % 3, c2 = (c + 2) % 3;  // w x r, as Eigen's cross
+      rel[c] = (vb[c] + (wb[c1] * rb[c2] - wb[c2] * rb[c1])) -
+               (va[c] + (wa[c1] * ra[c2] - wa[c2] * ra[c1]));
+    }
+  }
+  auto dot = [&](int part) {
+    const float* u = f + 3 * part * kVec;
+    return widen(u) * rel[0] + widen(u + kVec) * rel[1] + widen(u + 2 * kVec) * rel[2];
+  };
+  Rows g = {dot(0) + load(bias), dot(1), dot(2)};
+  if (count < kVec) {  // padding lanes: zero, whatever the velocities
+    const d4 lane = {0.0, 1.0, 2.0, 3.0};
+    const auto valid = lane < double(count);
+    g = {select(valid, g.n, d4{}), select(valid, g.t1, d4{}), select(valid, g.t2, d4{})};
+  }
+  return g;
+}
+
+// A bilateral row's trial, as trial_block does a contact's.
+void trial_row(double x, double x_old, double gx, double g_old, CcpProblem::Momentum mo,
+               double step, double lo, double hi, double& x1, CcpProblem::TrialSums& sums) {
+  const double y = mo.cb != 0.0 ? mo.ca * x - mo.cb * x_old : x;
+  const double gy = mo.cb != 0.0 ? mo.ca * gx - mo.cb * g_old : gx;
+  x1 = std::clamp(y - step * gy, lo, hi);
+  sums.dd += (x1 - y) * (x1 - y);
+  sums.dnd -= (x1 - y) * gy;
+  sums.uphill += gy * (x1 - x);
+}
+
 }  // namespace
 
 CcpProblem::TrialSums& CcpProblem::TrialSums::operator+=(const TrialSums& o) {
@@ -343,86 +462,46 @@ CcpProblem::TrialSums& CcpProblem::TrialSums::operator+=(const TrialSums& o) {
   return *this;
 }
 
-double CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx, ConstSpan g_old,
-                             Span y, Span gy, const Momentum* momentum, double step) const {
+CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx,
+                                            ConstSpan g_old, Momentum mo, double step) const {
+  static_assert(kLanes == kVec);
   const std::size_t nc = a_.size();
   impulse_.resize(mu_.size());  // whole blocks
-  const double ca = momentum ? momentum->ca : 1.0, cb = momentum ? momentum->cb : 0.0;
+  const bool old = mo.cb != 0.0;
   const auto chunks = std::ptrdiff_t((nc + kReduceChunk - 1) / kReduceChunk);
-  static thread_local std::vector<double> buffer;  // as in reduce()
-  std::vector<double>& partial = buffer;
-  partial.assign(std::size_t(chunks), 0.0);
+  static thread_local std::vector<TrialSums> buffer;  // as in reduce()
+  std::vector<TrialSums>& partial = buffer;
+  partial.assign(std::size_t(chunks), TrialSums{});
 #pragma omp parallel for schedule(static) if (chunks > 1)
   for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
-    d4 gy_x = {};
+    TrialLanes sums;
     const std::size_t end = std::min(nc, std::size_t(ch + 1) * kReduceChunk);
     for (std::size_t k0 = std::size_t(ch) * kReduceChunk; k0 < end; k0 += kLanes) {
-      const std::size_t i0 = 3 * k0, rows = 3 * std::min(kLanes, end - k0);
-      // Pointers into the rows, or into zero-padded copies for a short block.
-      double pad[6][12];  // filled only for the short block
-      const bool full = rows == 12;
-      auto in = [&](ConstSpan v, int slot) -> const double* {
-        if (full) return v.data() + i0;
-        std::fill_n(std::copy_n(v.data() + i0, rows, pad[slot]), 12 - rows, 0.0);
-        return pad[slot];
-      };
-      const double* px = in(x, 0);
-      double* py = full ? y.data() + i0 : pad[4];
-      double* pgy = full ? gy.data() + i0 : pad[5];
-      if (momentum) {
-        const double *pold = in(x_old, 1), *pgx = in(gx, 2), *pgold = in(g_old, 3);
-        for (std::size_t j = 0; j < 12; j += 4) {
-          store(py + j, ca * load(px + j) - cb * load(pold + j));
-          store(pgy + j, ca * load(pgx + j) - cb * load(pgold + j));
-        }
-      } else if (!full) {
-        in(y, 4);  // into py, pgy
-        in(gy, 5);
-      }
-      double q[12];
-      for (std::size_t j = 0; j < 12; j += 4) {
-        gy_x += load(pgy + j) * load(px + j);
-        store(q + j, load(py + j) - step * load(pgy + j));
-      }
-      Rows r = load_rows(q);
-      project_cone(load(mu_.data() + k0), r);
-      if (full) {
-        store_rows(x1.data() + i0, r);
-      } else {
-        store_rows(q, r);
-        std::copy_n(q, rows, x1.data() + i0);
-        std::copy_n(py, rows, y.data() + i0);
-        std::copy_n(pgy, rows, gy.data() + i0);
-      }
-      // World impulses n qn + t1 qt1 + t2 qt2, component by component.
-      const float* f = &frame_[k0 / kLanes * kFrameBlock];
-      Rows imp;
-      d4* out[3] = {&imp.n, &imp.t1, &imp.t2};  // x, y, z components
-      for (int c = 0; c < 3; ++c)
-        *out[c] = widen(f + c * kLanes) * r.n + widen(f + (3 + c) * kLanes) * r.t1 +
-                  widen(f + (6 + c) * kLanes) * r.t2;
-      store_rows(impulse_[k0].data(), imp);
+      BlockRows blk(3 * k0, 3 * std::min(kLanes, end - k0));
+      const double *px = blk.in(x, 0), *pgx = blk.in(gx, 1);
+      const double *pold = old ? blk.in(x_old, 2) : px, *pgold = old ? blk.in(g_old, 3) : pgx;
+      double* p1 = blk.out(x1, 4);
+      const Rows r = trial_block(px, pold, pgx, pgold, mo, step, load(mu_.data() + k0), p1, sums);
+      blk.flush(x1, 4);
+      store_impulses(&frame_[k0 / kLanes * kFrameBlock], r, impulse_[k0].data());
     }
-    partial[std::size_t(ch)] = lane_sum(gy_x);
+    partial[std::size_t(ch)] = {lane_sum(sums.dd), -lane_sum(sums.d_gy), lane_sum(sums.uphill)};
   }
-  double gy_dot_x = 0.0;
-  for (const double part : partial) gy_dot_x += part;
+  TrialSums total;
+  for (const TrialSums& part : partial) total += part;
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const std::size_t i = 3 * nc + j;
-    if (momentum) {
-      y[i] = ca * x[i] - cb * x_old[i];
-      gy[i] = ca * gx[i] - cb * g_old[i];
-    }
-    gy_dot_x += gy[i] * x[i];
-    x1[i] = std::clamp(y[i] - step * gy[i], rows_[j].lo, rows_[j].hi);
+    trial_row(x[i], old ? x_old[i] : 0.0, gx[i], old ? g_old[i] : 0.0, mo, step, rows_[j].lo,
+              rows_[j].hi, x1[i], total);
   }
-  return gy_dot_x;
+  return total;
 }
 
-CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan y, ConstSpan gy,
-                                                double gy_dot_x) const {
+void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_old, Momentum mo,
+                               TrialSums& t) const {
   scatter_bodies(x1, true, dv_, dw_);
   const double inv_s = diag_max_, s_res = 1.0 / inv_s;  // the residual's step
+  const bool old = mo.cb != 0.0;
   const std::size_t nc = a_.size();
   const auto chunks = std::ptrdiff_t((nc + kReduceChunk - 1) / kReduceChunk);
   static thread_local std::vector<TrialSums> buffer;  // as in reduce()
@@ -430,86 +509,47 @@ CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan
   partial.assign(std::size_t(chunks), TrialSums{});
 #pragma omp parallel for schedule(static) if (chunks > 1)
   for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
-    d4 dd = {}, dnd = {}, gy_x1 = {}, res2 = {}, resm = {};
+    d4 d_g1 = {}, res2 = {}, resm = {};
     const std::size_t end = std::min(nc, std::size_t(ch + 1) * kReduceChunk);
     for (std::size_t k0 = std::size_t(ch) * kReduceChunk; k0 < end; k0 += kLanes) {
-      const std::size_t count = std::min(kLanes, end - k0), rows = 3 * count, i0 = 3 * k0;
-      const bool full = count == kLanes;
-      double pad[4][12];  // filled only for the short block
-      auto in = [&](ConstSpan v, int slot) -> const double* {
-        if (full) return v.data() + i0;
-        std::fill_n(std::copy_n(v.data() + i0, rows, pad[slot]), 12 - rows, 0.0);
-        return pad[slot];
-      };
-      // Relative velocity at the contact points, component by component.
-      const float* f = &frame_[k0 / kLanes * kFrameBlock];
-      std::size_t ia[kLanes], ib[kLanes];
-      for (std::size_t l = 0; l < kLanes; ++l) {
-        ia[l] = std::size_t(a_[k0 + std::min(l, count - 1)]);
-        ib[l] = std::size_t(b_[k0 + std::min(l, count - 1)]);
-      }
-      auto lanes = [&](const std::vector<Vec3>& v, const std::size_t* i, int c) {
-        return d4{v[i[0]][c], v[i[1]][c], v[i[2]][c], v[i[3]][c]};
-      };
-      d4 rel[3];
-      {
-        const d4 va[3] = {lanes(dv_, ia, 0), lanes(dv_, ia, 1), lanes(dv_, ia, 2)};
-        const d4 wa[3] = {lanes(dw_, ia, 0), lanes(dw_, ia, 1), lanes(dw_, ia, 2)};
-        const d4 vb[3] = {lanes(dv_, ib, 0), lanes(dv_, ib, 1), lanes(dv_, ib, 2)};
-        const d4 wb[3] = {lanes(dw_, ib, 0), lanes(dw_, ib, 1), lanes(dw_, ib, 2)};
-        const d4 ra[3] = {widen(f + 9 * kLanes), widen(f + 10 * kLanes), widen(f + 11 * kLanes)};
-        const d4 rb[3] = {widen(f + 12 * kLanes), widen(f + 13 * kLanes), widen(f + 14 * kLanes)};
-        for (int c = 0; c < 3; ++c) {
-          const int c1 = (c + 1) % 3, c2 = (c + 2) % 3;  // w x r, as Eigen's cross
-          rel[c] = (vb[c] + (wb[c1] * rb[c2] - wb[c2] * rb[c1])) -
-                   (va[c] + (wa[c1] * ra[c2] - wa[c2] * ra[c1]));
-        }
-      }
-      auto dot = [&](int part) {
-        const float* u = f + 3 * part * kLanes;
-        return widen(u) * rel[0] + widen(u + kLanes) * rel[1] + widen(u + 2 * kLanes) * rel[2];
-      };
-      Rows g = {dot(0) + load(bias_.data() + k0), dot(1), dot(2)};
-      if (!full) {  // padding lanes: zero, whatever the velocities
-        const d4 lane = {0.0, 1.0, 2.0, 3.0};
-        const auto valid = lane < double(count);
-        g = {select(valid, g.n, d4{}), select(valid, g.t1, d4{}), select(valid, g.t2, d4{})};
-      }
-      double* pg = full ? g1.data() + i0 : pad[3];
+      const std::size_t count = std::min(kLanes, end - k0);
+      BlockRows blk(3 * k0, 3 * count);
+      const Rows g = gather_block(&frame_[k0 / kLanes * kFrameBlock], &a_[k0], &b_[k0], count,
+                                  dv_, dw_, &bias_[k0]);
+      double* pg = blk.out(g1, 3);
       store_rows(pg, g);
-      if (!full) std::copy_n(pad[3], rows, g1.data() + i0);
-      // The iteration's sums over the block's rows.
-      const Rows r1 = load_rows(in(x1, 0)), ry = load_rows(in(y, 1)), rgy = load_rows(in(gy, 2));
+      blk.flush(g1, 3);
+      // d.g1 with d = x1 - y, y made again as apgd_step made it (the same
+      // bits): cheaper than storing y there and reading it here.
+      const double *p1 = blk.in(x1, 0), *px = blk.in(x, 1), *pold = old ? blk.in(x_old, 2) : px;
+      for (std::size_t j = 0; j < 12; j += 4) {
+        const d4 y = old ? mo.ca * load(px + j) - mo.cb * load(pold + j) : load(px + j);
+        d_g1 += (load(p1 + j) - y) * load(pg + j);
+      }
+      const Rows r1 = load_rows(p1);
       Rows q = {r1.n - s_res * g.n, r1.t1 - s_res * g.t1, r1.t2 - s_res * g.t2};
       project_cone(load(mu_.data() + k0), q);
-      const d4 Rows::*row[3] = {&Rows::n, &Rows::t1, &Rows::t2};
-      for (const auto m : row) {
-        const d4 d = r1.*m - ry.*m, res = (r1.*m - q.*m) * inv_s;
-        dd += d * d;
-        dnd += d * (g.*m - rgy.*m);
-        gy_x1 += rgy.*m * r1.*m;
+      for (const auto m : {&Rows::n, &Rows::t1, &Rows::t2}) {
+        const d4 res = (r1.*m - q.*m) * inv_s;
         res2 += res * res;
         resm = vmax(resm, vabs(res));
       }
     }
-    partial[std::size_t(ch)] = {lane_sum(dd), lane_sum(dnd), lane_sum(gy_x1), lane_sum(res2),
-                                lane_max(resm)};
+    TrialSums& part = partial[std::size_t(ch)];
+    part.dnd = lane_sum(d_g1);
+    part.res_sum = lane_sum(res2);
+    part.res_max = lane_max(resm);
   }
   gather_rows(dv_, dw_, true, g1);
-  TrialSums total;
-  for (const TrialSums& part : partial) total += part;
+  for (const TrialSums& part : partial) t += part;
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const std::size_t i = 3 * nc + j;
-    const double d = x1[i] - y[i];
+    const double y = old ? mo.ca * x[i] - mo.cb * x_old[i] : x[i];
     const double res = (x1[i] - std::clamp(x1[i] - s_res * g1[i], rows_[j].lo, rows_[j].hi)) * inv_s;
-    total.dd += d * d;
-    total.dnd += d * (g1[i] - gy[i]);
-    total.uphill += gy[i] * x1[i];
-    total.res_sum += res * res;
-    total.res_max = std::max(total.res_max, std::abs(res));
+    t.dnd += (x1[i] - y) * g1[i];
+    t.res_sum += res * res;
+    t.res_max = std::max(t.res_max, std::abs(res));
   }
-  total.uphill -= gy_dot_x;  // gy.(x1 - x)
-  return total;
 }
 
 void CcpProblem::world_impulses(ConstSpan x, std::vector<Vec3>& out) const {

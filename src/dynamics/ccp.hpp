@@ -173,24 +173,30 @@ class CcpProblem {
 
   // APGD's iteration in two streaming passes over the contacts (and one
   // over the bodies), four contacts to a SIMD vector (solve_apgd; ccp.cpp).
-  // The first: x1 = Π(y - step gy). With `momentum`, y and gy are first
-  // made from the last two iterates, y = ca x - cb x_old and gy = ca gx -
-  // cb g_old (x1 may be x_old's buffer, g_old g1's: each row is read before
-  // it is written). It keeps the contacts' world impulses for the second
-  // pass and returns gy.x, which the second would otherwise read x again for.
+  // The extrapolated point y = ca x - cb x_old and its gradient gy = ca gx -
+  // cb g_old are made where they are used and never stored (cb = 0: y = x,
+  // gy = gx, and x_old, g_old are not read): storing them cost more memory
+  // traffic than the second pass's reading x_old again.
   struct Momentum {
-    double ca, cb;
+    double ca = 1.0, cb = 0.0;
   };
-  double apgd_step(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx, ConstSpan g_old, Span y,
-                   Span gy, const Momentum* momentum, double step) const;
-  // The second: g1 = N x1 + r at apgd_step's x1, and the sums an APGD
-  // iteration decides on (uphill = gy.(x1 - x)), added in fixed chunks as
-  // reduce() adds them.
+  // The sums an APGD iteration decides on, added in fixed chunks as
+  // reduce() adds them: dd = |d|^2 and dnd = d.(g1 - gy) with d = x1 - y,
+  // uphill = gy.(x1 - x), and the residual's.
   struct TrialSums {
     double dd = 0, dnd = 0, uphill = 0, res_sum = 0, res_max = 0;
     TrialSums& operator+=(const TrialSums& o);
   };
-  TrialSums apgd_gradient(ConstSpan x1, Span g1, ConstSpan y, ConstSpan gy, double gy_dot_x) const;
+  // The first: x1 = Π(y - step gy), the contacts' world impulses for the
+  // second pass, and the sums but d.g1 and the residual's. x1 must not be
+  // x or x_old (a backtracking step makes y again).
+  TrialSums apgd_step(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx, ConstSpan g_old,
+                      Momentum momentum, double step) const;
+  // The second: g1 = N x1 + r at apgd_step's x1; adds d.g1 and the residual
+  // to t. (Fused with the next iteration's first pass, on the guess that x1
+  // is accepted, it ran 8 % slower on the 1e5-contact bed: bench/README.md.)
+  void apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_old, Momentum momentum,
+                     TrialSums& t) const;
 
   // Projected Gauss-Seidel sweeps, in place (needs row access).
   SolveStats solve_pgs(Span x, const SolverSettings& s, SolverWorkspace& ws) const;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <utility>
 
 #include "common/parallel.hpp"
 #include "dynamics/ccp.hpp"
@@ -40,44 +41,39 @@ struct Best {
 // and f is quadratic, so the sufficient-decrease test
 //   f(x1) <= f(y) + g(y).d + L/2 |d|^2,  d = x1 - y,
 // is exactly d.(g(x1) - g(y)) <= L |d|^2, which needs no objective values.
-// The sums of an iteration come from one fused pass over the rows.
+// The sums of an iteration come from the kernel's two passes over the rows.
 SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, SolverWorkspace& ws) {
   const std::size_t m = p.row_count();
   if (m == 0) return {0, 0.0, 0.0, true};
-  // Three buffers hold the iterate x, the one before it (x_old) and a spare;
-  // the best iterate is kept where it lies (best_in) instead of copied, and
-  // a trial point goes where it overwrites neither it nor x. The gradients
-  // of x and of the trial trade two buffers.
-  Span x = ws.take(0, m), x_old = ws.take(2, m), spare = ws.take(6, m);
-  Span gx = ws.take(1, m), g1 = ws.take(3, m);
-  const Span y = ws.take(4, m), gy = ws.take(5, m), probe = ws.take(7, m);
-  enum class Where { x, x_old, spare } best_in = Where::spare;
+  // Four buffers for iterates: x, the one before it (x_old), the best so
+  // far (kept where it lies instead of copied; it may be x or x_old) and the
+  // trial x1, which goes where it overwrites none of them (a backtracking
+  // step makes it again from x and x_old). Three for the gradients: gx,
+  // g_old and x1's.
+  std::array<Span, 4> xs = {ws.take(0, m), ws.take(1, m), ws.take(2, m), ws.take(3, m)};
+  std::array<Span, 3> gs = {ws.take(4, m), ws.take(5, m), ws.take(6, m)};
+  std::size_t ix = 0, iold = 1, ibest = 2, gx = 0, gold = 1, g1 = 2;
   const double inv_s = p.diagonal_max();
-  copy(out, x);
-  p.gradient(x, gx);
-  copy(x, y);
-  copy(gx, gy);
-  copy(x, spare);  // the best until an iterate improves on it
+  copy(out, xs[ix]);
+  p.gradient(xs[ix], gs[gx]);
+  copy(xs[ix], xs[ibest]);  // the best until an iterate improves on it
   // Initial Lipschitz estimate: |N u| / |u| along u = (1, ..., 1).
-  std::fill(probe.begin(), probe.end(), 1.0);
-  p.multiply(probe, x_old);
-  double L = std::max(std::sqrt(dot(x_old, x_old) / double(m)), 1e-12 * inv_s);
+  std::fill(xs[3].begin(), xs[3].end(), 1.0);
+  p.multiply(xs[3], gs[g1]);
+  double L = std::max(std::sqrt(dot(gs[g1], gs[g1]) / double(m)), 1e-12 * inv_s);
   const double L_cap = 1e3 * inv_s * double(m);
   double theta = 1.0;
   Best record;
-  // The momentum step y = ca x - cb x_old (and gy alike) of an iteration is
-  // made in the next one's first projected step: one pass over the rows
-  // less. At the start y, gy are x, gx.
-  CcpProblem::Momentum momentum{1.0, 0.0};
-  bool extrapolate = false;
+  // y = ca x - cb x_old; at the start and after a restart y = x.
+  CcpProblem::Momentum momentum;
   int it = 0;
   for (; it < s.max_iterations; ++it) {
+    std::size_t i1 = 0;
+    while (i1 == ix || i1 == iold || i1 == ibest) ++i1;
     CcpProblem::TrialSums t;
-    const Span x1 = best_in == Where::x_old ? spare : x_old;
-    for (bool first = true;; first = false) {
-      const double gy_x = p.apgd_step(x, x_old, x1, gx, g1, y, gy,
-                                      first && extrapolate ? &momentum : nullptr, 1.0 / L);
-      t = p.apgd_gradient(x1, g1, y, gy, gy_x);
+    for (;;) {
+      t = p.apgd_step(xs[ix], xs[iold], xs[i1], gs[gx], gs[gold], momentum, 1.0 / L);
+      p.apgd_gradient(xs[i1], gs[g1], xs[ix], xs[iold], momentum, t);
       if (t.dnd <= L * t.dd * (1.0 + 1e-10) || L > L_cap) break;
       L *= 2.0;
     }
@@ -86,30 +82,25 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
       record.take(rms, t.res_max);
       record.stats.converged = true;
       record.stats.iterations = it + 1;
-      copy(x1, out);
+      copy(xs[i1], out);
       return record.stats;
     }
-    const bool improves = record.improves(rms);
-    if (improves) record.take(rms, t.res_max);
+    if (record.improves(rms)) {
+      record.take(rms, t.res_max);
+      ibest = i1;
+    }
     const double theta1 = 0.5 * (-theta * theta + theta * std::sqrt(theta * theta + 4.0));
     const double beta = theta * (1.0 - theta) / (theta * theta + theta1);
     const bool restart = t.uphill > 0.0;  // momentum points uphill
     theta = restart ? 1.0 : theta1;
-    momentum.ca = restart ? 1.0 : 1.0 + beta;
-    momentum.cb = restart ? 0.0 : beta;
-    extrapolate = true;
-    // The trial is accepted: it becomes x, x becomes x_old, and the buffer
-    // left over is the spare.
-    if (x1.data() == spare.data()) std::swap(spare, x_old);  // x_old's buffer is left over
-    std::swap(x_old, x);
-    x = x1;
-    // A best that was in x_old is now in the spare: x1 went elsewhere.
-    best_in = improves ? Where::x : best_in == Where::x ? Where::x_old : Where::spare;
-    std::swap(gx, g1);
+    momentum = restart ? CcpProblem::Momentum{} : CcpProblem::Momentum{1.0 + beta, beta};
+    // The trial is accepted: it becomes x, x becomes x_old.
+    iold = std::exchange(ix, i1);
+    gold = std::exchange(gx, std::exchange(g1, gold));
     L *= 0.9;
   }
   record.stats.iterations = it;
-  copy(best_in == Where::x ? x : best_in == Where::x_old ? x_old : spare, out);
+  copy(xs[ibest], out);
   return record.stats;
 }
 
