@@ -174,8 +174,9 @@ int main(int argc, char** argv) {
   measure_memory(p, r);
   for (std::size_t n : p.broadphase) r.broadphase.push_back(measure_broadphase(n));
   if (!o.scene.empty()) measure_scene(o, r);
-  r.machine.load_end = load_average();
   r.seconds = since(t0);
+  const CpuClock end = read_cpu_clock(), &start = r.machine.cpu_start;
+  r.machine.others_cores = ((end.all - start.all) - (end.own - start.own)) / r.seconds;
   write_outputs(o, r);
   return 0;
 }

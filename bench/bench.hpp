@@ -111,13 +111,21 @@ double proc_status_bytes(const char* key);
 
 // ---- results and their outputs (output.cpp) --------------------------------
 
+// CPU seconds used by every process on the machine and by this one with its
+// children: over the bench, their difference is what others took.
+struct CpuClock {
+  double all = 0, own = 0;
+};
+CpuClock read_cpu_clock();
+
 struct Machine {
   std::string cpu, build, date;
   int procs = 1;
-  double mem_gib = 0, load_start = 0, load_end = 0;
+  double mem_gib = 0;
+  CpuClock cpu_start;
+  double others_cores = 0;  // CPU seconds others took over the bench, per second
 };
 Machine read_machine();
-double load_average();
 
 struct Results {
   bool quick = false;

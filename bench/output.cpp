@@ -1,6 +1,8 @@
 // The CSV (one row per figure: measure, particles, contacts, threads, value,
 // unit) and the report against issue 7's targets.
 #include <omp.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
@@ -41,11 +43,24 @@ std::string utc_now() {
 
 }  // namespace
 
-double load_average() {
-  std::ifstream in("/proc/loadavg");
-  double one = 0;
-  in >> one;
-  return one;
+CpuClock read_cpu_clock() {
+  CpuClock c;
+  std::ifstream in("/proc/stat");
+  std::string cpu;
+  in >> cpu;  // the first line sums all CPUs
+  // user nice system idle iowait irq softirq steal: all but idle and iowait
+  // were taken by someone (steal: by other guests of the host).
+  double ticks[8] = {};
+  for (double& t : ticks) in >> t;
+  const double hz = double(sysconf(_SC_CLK_TCK));
+  c.all = (ticks[0] + ticks[1] + ticks[2] + ticks[5] + ticks[6] + ticks[7]) / hz;
+  for (const int who : {RUSAGE_SELF, RUSAGE_CHILDREN}) {
+    rusage u{};
+    getrusage(who, &u);
+    c.own += double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+             1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+  }
+  return c;
 }
 
 Machine read_machine() {
@@ -63,7 +78,7 @@ Machine read_machine() {
   const char* wait = std::getenv("OMP_WAIT_POLICY");
   m.build += std::string(", OMP_WAIT_POLICY=") + (wait ? wait : "(unset)");
   m.date = utc_now();
-  m.load_start = load_average();
+  m.cpu_start = read_cpu_clock();
   return m;
 }
 
@@ -175,6 +190,7 @@ void write_csv(const Results& r, const std::string& path) {
   }
   if (r.scene && r.scene->wall_total > 0) scene_rows(c, *r.scene);
   c.row("bench_wall", 0, 0, r.machine.procs, r.seconds, "s");
+  c.row("others_cores", 0, 0, r.machine.procs, r.machine.others_cores, "cores");
 }
 
 // ---- the report ------------------------------------------------------------
@@ -208,10 +224,10 @@ void header(std::ostream& o, const Results& r) {
   const Machine& m = r.machine;
   o << "# ces-sim bench, " << m.date << (r.quick ? " (--quick)" : "") << "\n\n"
     << "Machine: " << m.cpu << ", " << m.procs << " CPUs, " << f("%.0f", m.mem_gib)
-    << " GiB. Build: " << m.build << ". Load average " << f("%.2f", m.load_start)
-    << " at the start, " << f("%.2f", m.load_end) << " at the end; the bench took "
-    << f("%.0f", r.seconds) << " s.\n";
-  if (m.load_start > 0.5 || m.load_end > 1.5)
+    << " GiB. Build: " << m.build << ". The bench took " << f("%.0f", r.seconds)
+    << " s; other processes (and other guests of the host) took " << f("%.2f", m.others_cores)
+    << " cores on average meanwhile.\n";
+  if (m.others_cores > 0.1)
     o << "\n**The machine was busy: figures are not representative. Re-run on a quiet "
          "machine.**\n";
   o << "\nBeds: simple-cubic packs of touching 1 mm spheres on a plane (about 3 contacts per "
