@@ -88,10 +88,10 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     tangents(n, t1, t2);
     const Vec3 ra = c.point[k] - B.x[std::size_t(a_[k])];
     const Vec3 rb = c.point[k] - B.x[std::size_t(b_[k])];
-    float* f = &frame_[k / kLanes * kFrameBlock + k % kLanes];
+    FrameScalar* f = &frame_[k / kLanes * kFrameBlock + k % kLanes];
     const Vec3* parts[] = {&n, &t1, &t2, &ra, &rb};
     for (const Vec3* part : parts)
-      for (int c = 0; c < 3; ++c, f += kLanes) *f = float((*part)[c]);
+      for (int c = 0; c < 3; ++c, f += kLanes) *f = FrameScalar((*part)[c]);
     // Stabilization: close a positive gap exactly this step, push an overlap
     // out no faster than the recovery speed.
     double bias = std::max(c.gap[k] / h, -settings.recovery_speed);
@@ -281,6 +281,7 @@ constexpr std::size_t kVec = 4;  // lanes of d4: CcpProblem::kLanes
   std::memcpy(&f, p, sizeof f);
   return __builtin_convertvector(f, d4);
 }
+[[gnu::always_inline]] inline d4 widen(const double* p) { return load(p); }
 [[gnu::always_inline]] inline d4 select(decltype(d4{} < d4{}) mask, d4 a, d4 b) { return mask ? a : b; }
 [[gnu::always_inline]] inline d4 vmax(d4 a, d4 b) { return select(a < b, b, a); }  // std::max(a, b)'s lanes
 [[gnu::always_inline]] inline d4 vabs(d4 a) { return select(a < 0.0, -a, a); }
@@ -391,7 +392,8 @@ struct TrialLanes {
 
 // World impulses n qn + t1 qt1 + t2 qt2 of a block (frame block f), component
 // by component, into 12 doubles.
-[[gnu::always_inline]] inline void store_impulses(const float* f, const Rows& r, double* out) {
+[[gnu::always_inline]] inline void store_impulses(const FrameScalar* f, const Rows& r,
+                                                  double* out) {
   Rows imp;
   d4* c_out[3] = {&imp.n, &imp.t1, &imp.t2};  // x, y, z components
   for (std::size_t c = 0; c < 3; ++c)
@@ -402,8 +404,10 @@ struct TrialLanes {
 
 // g = J dv + b of a block's contacts: count (<= 4) contacts from a, b (body
 // indices), frame block f and bias; lane = contact, lanes past count zero.
-[[gnu::always_inline]] inline Rows gather_block(const float* f, const std::int32_t* a, const std::int32_t* b, std::size_t count,
-                  const std::vector<Vec3>& dv, const std::vector<Vec3>& dw, const double* bias) {
+[[gnu::always_inline]] inline Rows gather_block(const FrameScalar* f, const std::int32_t* a,
+                                                const std::int32_t* b, std::size_t count,
+                                                const std::vector<Vec3>& dv,
+                                                const std::vector<Vec3>& dw, const double* bias) {
   std::size_t ia[kVec], ib[kVec];
   for (std::size_t l = 0; l < kVec; ++l) {
     ia[l] = std::size_t(a[std::min(l, count - 1)]);
@@ -428,7 +432,7 @@ struct TrialLanes {
     }
   }
   auto dot = [&](int part) {
-    const float* u = f + 3 * part * kVec;
+    const FrameScalar* u = f + 3 * part * kVec;
     return widen(u) * rel[0] + widen(u + kVec) * rel[1] + widen(u + 2 * kVec) * rel[2];
   };
   Rows g = {dot(0) + load(bias), dot(1), dot(2)};

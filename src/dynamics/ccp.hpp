@@ -19,7 +19,9 @@
 // them every iteration and is bound by memory bandwidth. They are relative
 // quantities (unit vectors, lever arms of a few mm, at most the drum radius),
 // so float's 6e-8 relative error moves a contact point by nanometres; scatter
-// and gather read the same rounded D, so N stays exactly symmetric.
+// and gather read the same rounded D, so N stays exactly symmetric. The
+// build option CES_DOUBLE_FRAMES stores them in double, to measure what
+// float costs (docs/accuracy.md, section 2).
 #pragma once
 #include <Eigen/Core>
 #include <algorithm>
@@ -39,6 +41,12 @@
 #endif
 
 namespace ces {
+
+#ifdef CES_DOUBLE_FRAMES
+using FrameScalar = double;
+#else
+using FrameScalar = float;
+#endif
 
 using Span = std::span<double>;
 using ConstSpan = std::span<const double>;
@@ -229,9 +237,9 @@ class CcpProblem {
   // contact k at frame_[k / kLanes * kFrameBlock + c * kLanes + k % kLanes],
   // so the kernel loads one component of four contacts at once.
   static constexpr std::size_t kLanes = 4, kFrameBlock = 15 * kLanes;
-  std::vector<float> frame_;
+  std::vector<FrameScalar> frame_;
   Vec3 frame(std::size_t k, std::size_t part) const {
-    const float* f = &frame_[k / kLanes * kFrameBlock + 3 * part * kLanes + k % kLanes];
+    const FrameScalar* f = &frame_[k / kLanes * kFrameBlock + 3 * part * kLanes + k % kLanes];
     return {double(f[0]), double(f[kLanes]), double(f[2 * kLanes])};
   }
   Vec3 normal(std::size_t k) const { return frame(k, 0); }
