@@ -3,7 +3,7 @@
 # stands (tests/stress_test.cpp runs short versions) and prints one line per
 # run with the pass criteria's measures. Usage, from the repository root:
 #   bash bench/stress.sh [OUT_DIR] [SCENE_NAME...]        (default: bench/out/stress, all)
-# The 1e5-particle dense flow is the long one (hours on 2 cores): name the
+# The 1e5-particle dense flow is the long one (73 minutes): name the
 # others to leave it out. One thread each.
 set -u
 out=${1:-bench/out/stress}; shift || true

@@ -3,11 +3,12 @@
 //   - the run completes with no NaN or Inf (the collectors remove a
 //     particle whose state turns non-finite, as lost: "non-finite state");
 //   - the particle mass balance is exact;
-//   - no particle through a wall: each scene's domain ends at its walls'
-//     faces, so a grain through one is lost as "left domain"; and no
-//     sphere's centre past a wall's surface (overlap with a static or
-//     kinematic body above its radius: into the drum, where no domain
-//     face can see it);
+//   - no particle through a wall: the domain ends at the walls' faces, so a
+//     grain through one is lost as "left domain" (not under the dense
+//     flow's inclined chute: its full run is judged by where grains land,
+//     docs/accuracy.md); and no sphere's centre past a wall's surface
+//     (overlap with a static or kinematic body above its radius: into the
+//     drum, where no domain face can see it);
 //   - penetration below 5 % of the radius, or (cases marked "reported")
 //     above it only with the summary's warning;
 //   - in passive scenes, no energy gain above 1 % of the peak kinetic energy
