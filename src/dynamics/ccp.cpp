@@ -455,6 +455,26 @@ void trial_row(double x, double x_old, double gx, double g_old, CcpProblem::Mome
   sums.uphill += gy * (x1 - x);
 }
 
+// fn(begin, end, part) over fixed chunks of nc contacts in parallel, the
+// parts added in chunk order, as CcpProblem::reduce does: the same bits for
+// any thread count. The kernel's passes walk each chunk in blocks.
+template <class Fn>
+CcpProblem::TrialSums reduce_chunks(std::size_t nc, Fn fn) {
+  const auto chunk = std::size_t(kReduceChunk);
+  const auto chunks = std::ptrdiff_t((nc + chunk - 1) / chunk);
+  static thread_local std::vector<CcpProblem::TrialSums> buffer;  // as in reduce()
+  std::vector<CcpProblem::TrialSums>& partial = buffer;
+  partial.assign(std::size_t(chunks), {});
+#pragma omp parallel for schedule(static) if (chunks > 1)
+  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
+    const auto c = std::size_t(ch);
+    fn(c * chunk, std::min(nc, (c + 1) * chunk), partial[c]);
+  }
+  CcpProblem::TrialSums total;
+  for (const CcpProblem::TrialSums& part : partial) total += part;
+  return total;
+}
+
 }  // namespace
 
 CcpProblem::TrialSums& CcpProblem::TrialSums::operator+=(const TrialSums& o) {
@@ -472,15 +492,9 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
   const std::size_t nc = a_.size();
   impulse_.resize(mu_.size());  // whole blocks
   const bool old = mo.cb != 0.0;
-  const auto chunks = std::ptrdiff_t((nc + kReduceChunk - 1) / kReduceChunk);
-  static thread_local std::vector<TrialSums> buffer;  // as in reduce()
-  std::vector<TrialSums>& partial = buffer;
-  partial.assign(std::size_t(chunks), TrialSums{});
-#pragma omp parallel for schedule(static) if (chunks > 1)
-  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
+  TrialSums total = reduce_chunks(nc, [&](std::size_t begin, std::size_t end, TrialSums& part) {
     TrialLanes sums;
-    const std::size_t end = std::min(nc, std::size_t(ch + 1) * kReduceChunk);
-    for (std::size_t k0 = std::size_t(ch) * kReduceChunk; k0 < end; k0 += kLanes) {
+    for (std::size_t k0 = begin; k0 < end; k0 += kLanes) {
       BlockRows blk(3 * k0, 3 * std::min(kLanes, end - k0));
       const double *px = blk.in(x, 0), *pgx = blk.in(gx, 1);
       const double *pold = old ? blk.in(x_old, 2) : px, *pgold = old ? blk.in(g_old, 3) : pgx;
@@ -489,10 +503,8 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
       blk.flush(x1, 4);
       store_impulses(&frame_[k0 / kLanes * kFrameBlock], r, impulse_[k0].data());
     }
-    partial[std::size_t(ch)] = {lane_sum(sums.dd), -lane_sum(sums.d_gy), lane_sum(sums.uphill)};
-  }
-  TrialSums total;
-  for (const TrialSums& part : partial) total += part;
+    part = {lane_sum(sums.dd), -lane_sum(sums.d_gy), lane_sum(sums.uphill)};
+  });
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const std::size_t i = 3 * nc + j;
     trial_row(x[i], old ? x_old[i] : 0.0, gx[i], old ? g_old[i] : 0.0, mo, step, rows_[j].lo,
@@ -507,15 +519,9 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
   const double inv_s = diag_max_, s_res = 1.0 / inv_s;  // the residual's step
   const bool old = mo.cb != 0.0;
   const std::size_t nc = a_.size();
-  const auto chunks = std::ptrdiff_t((nc + kReduceChunk - 1) / kReduceChunk);
-  static thread_local std::vector<TrialSums> buffer;  // as in reduce()
-  std::vector<TrialSums>& partial = buffer;
-  partial.assign(std::size_t(chunks), TrialSums{});
-#pragma omp parallel for schedule(static) if (chunks > 1)
-  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
+  t += reduce_chunks(nc, [&](std::size_t begin, std::size_t end, TrialSums& part) {
     d4 d_g1 = {}, res2 = {}, resm = {};
-    const std::size_t end = std::min(nc, std::size_t(ch + 1) * kReduceChunk);
-    for (std::size_t k0 = std::size_t(ch) * kReduceChunk; k0 < end; k0 += kLanes) {
+    for (std::size_t k0 = begin; k0 < end; k0 += kLanes) {
       const std::size_t count = std::min(kLanes, end - k0);
       BlockRows blk(3 * k0, 3 * count);
       const Rows g = gather_block(&frame_[k0 / kLanes * kFrameBlock], &a_[k0], &b_[k0], count,
@@ -539,13 +545,11 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
         resm = vmax(resm, vabs(res));
       }
     }
-    TrialSums& part = partial[std::size_t(ch)];
     part.dnd = lane_sum(d_g1);
     part.res_sum = lane_sum(res2);
     part.res_max = lane_max(resm);
-  }
+  });
   gather_rows(dv_, dw_, true, g1);
-  for (const TrialSums& part : partial) t += part;
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const std::size_t i = 3 * nc + j;
     const double y = old ? mo.ca * x[i] - mo.cb * x_old[i] : x[i];
