@@ -262,7 +262,7 @@ void CcpProblem::residual(ConstSpan x, ConstSpan g, double& rms, double& max) co
 // contact 4 b + l of block b. The rows x, g, ... keep their layout, three
 // doubles per contact: a block's 12 are loaded as three vectors and
 // transposed. Each lane does the scalar code's arithmetic in the same
-// order, so the results are those of project_cone and gather_contact; only
+// order, so the results are those of project_cone and gather; only
 // the sums are added in another order (per lane, lanes at the chunk's end).
 namespace {
 
@@ -455,26 +455,6 @@ void trial_row(double x, double x_old, double gx, double g_old, CcpProblem::Mome
   sums.uphill += gy * (x1 - x);
 }
 
-// fn(begin, end, part) over fixed chunks of nc contacts in parallel, the
-// parts added in chunk order, as CcpProblem::reduce does: the same bits for
-// any thread count. The kernel's passes walk each chunk in blocks.
-template <class Fn>
-CcpProblem::TrialSums reduce_chunks(std::size_t nc, Fn fn) {
-  const auto chunk = std::size_t(kReduceChunk);
-  const auto chunks = std::ptrdiff_t((nc + chunk - 1) / chunk);
-  static thread_local std::vector<CcpProblem::TrialSums> buffer;  // as in reduce()
-  std::vector<CcpProblem::TrialSums>& partial = buffer;
-  partial.assign(std::size_t(chunks), {});
-#pragma omp parallel for schedule(static) if (chunks > 1)
-  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
-    const auto c = std::size_t(ch);
-    fn(c * chunk, std::min(nc, (c + 1) * chunk), partial[c]);
-  }
-  CcpProblem::TrialSums total;
-  for (const CcpProblem::TrialSums& part : partial) total += part;
-  return total;
-}
-
 }  // namespace
 
 CcpProblem::TrialSums& CcpProblem::TrialSums::operator+=(const TrialSums& o) {
@@ -492,7 +472,7 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
   const std::size_t nc = a_.size();
   impulse_.resize(mu_.size());  // whole blocks
   const bool old = mo.cb != 0.0;
-  TrialSums total = reduce_chunks(nc, [&](std::size_t begin, std::size_t end, TrialSums& part) {
+  auto pass = [&](std::size_t begin, std::size_t end, TrialSums& part) {
     TrialLanes sums;
     for (std::size_t k0 = begin; k0 < end; k0 += kLanes) {
       BlockRows blk(3 * k0, 3 * std::min(kLanes, end - k0));
@@ -504,7 +484,8 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
       store_impulses(&frame_[k0 / kLanes * kFrameBlock], r, impulse_[k0].data());
     }
     part = {lane_sum(sums.dd), -lane_sum(sums.d_gy), lane_sum(sums.uphill)};
-  });
+  };
+  TrialSums total = reduce_chunks<TrialSums>(nc, pass);
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const std::size_t i = 3 * nc + j;
     trial_row(x[i], old ? x_old[i] : 0.0, gx[i], old ? g_old[i] : 0.0, mo, step, rows_[j].lo,
@@ -519,7 +500,7 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
   const double inv_s = diag_max_, s_res = 1.0 / inv_s;  // the residual's step
   const bool old = mo.cb != 0.0;
   const std::size_t nc = a_.size();
-  t += reduce_chunks(nc, [&](std::size_t begin, std::size_t end, TrialSums& part) {
+  auto pass = [&](std::size_t begin, std::size_t end, TrialSums& part) {
     d4 d_g1 = {}, res2 = {}, resm = {};
     for (std::size_t k0 = begin; k0 < end; k0 += kLanes) {
       const std::size_t count = std::min(kLanes, end - k0);
@@ -548,7 +529,8 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
     part.dnd = lane_sum(d_g1);
     part.res_sum = lane_sum(res2);
     part.res_max = lane_max(resm);
-  });
+  };
+  t += reduce_chunks<TrialSums>(nc, pass);
   gather_rows(dv_, dw_, true, g1);
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const std::size_t i = 3 * nc + j;

@@ -285,11 +285,14 @@ inline void project_cone(double mu, double& gn, double& gt1, double& gt2) {
   gt2 *= scale;
 }
 
-template <class Part, class ContactFn, class RowFn>
-Part CcpProblem::reduce(ContactFn acc, RowFn row) const {
-  const auto nc = std::ptrdiff_t(a_.size());
-  const std::ptrdiff_t chunks = (nc + kReduceChunk - 1) / kReduceChunk;
-  // Grows only: one buffer per Part type and thread of the caller.
+// fn(begin, end, part) over fixed chunks of n contacts in parallel, the
+// parts added in chunk order: the same bits for any thread count. Part needs
+// += and a default constructor that gives the neutral element.
+template <class Part, class ChunkFn>
+Part reduce_chunks(std::size_t n, ChunkFn fn) {
+  const auto chunk = std::size_t(kReduceChunk);
+  const auto chunks = std::ptrdiff_t((n + chunk - 1) / chunk);
+  // Grows only: one buffer per instantiation and thread of the caller.
   // (Named through a reference: inside the parallel loop the thread_local
   // itself would be each worker's own, empty, instance.)
   static thread_local std::vector<Part> buffer;
@@ -297,12 +300,21 @@ Part CcpProblem::reduce(ContactFn acc, RowFn row) const {
   partial.assign(std::size_t(chunks), Part{});
 #pragma omp parallel for schedule(static) if (chunks > 1)
   for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
-    Part& part = partial[std::size_t(ch)];
-    const std::ptrdiff_t end = std::min(nc, (ch + 1) * kReduceChunk);
-    for (std::ptrdiff_t k = ch * kReduceChunk; k < end; ++k) acc(k, mu_[std::size_t(k)], part);
+    const auto c = std::size_t(ch);
+    fn(c * chunk, std::min(n, (c + 1) * chunk), partial[c]);
   }
   Part total{};
   for (const Part& part : partial) total += part;
+  return total;
+}
+
+template <class Part, class ContactFn, class RowFn>
+Part CcpProblem::reduce(ContactFn acc, RowFn row) const {
+  auto contacts = [&](std::size_t begin, std::size_t end, Part& part) {
+    for (std::size_t k = begin; k < end; ++k) acc(std::ptrdiff_t(k), mu_[k], part);
+  };
+  Part total = reduce_chunks<Part>(a_.size(), contacts);
+  const auto nc = std::ptrdiff_t(a_.size());
   for (std::size_t j = 0; j < rows_.size(); ++j)
     row(3 * nc + std::ptrdiff_t(j), rows_[j].lo, rows_[j].hi, total);
   return total;
