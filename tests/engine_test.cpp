@@ -677,6 +677,23 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   for (std::size_t i = 0; i < m; ++i) ASSERT_EQ(x1[i], plain[i]) << i;
   p.apgd_gradient(x1, g1, x, nan, {}, t);
   EXPECT_TRUE(std::isfinite(t.dd + t.dnd + t.uphill + t.res_sum + t.res_max));
+  // Blocks none of whose contacts slides (each sticks, separates or is
+  // frictionless) take the projection's short path: the same bits.
+  std::vector<double> zero(m, 0.0);
+  int kept = 0, cleared = 0;
+  for (std::size_t k = 0; 3 * k < m - 1; ++k) {
+    x[3 * k] = k % 3 == 0 ? -1.0 : 1.0;  // friction >= 0.1: |x_t| <= 0.071 sticks
+    x[3 * k + 1] = 0.05 * uniform();
+    x[3 * k + 2] = 0.05 * uniform();
+  }
+  p.projected_step(x, zero, step, plain);
+  t = p.apgd_step(x, nan, x1, zero, nan, {}, step);
+  for (std::size_t i = 0; i < m; ++i) {
+    ASSERT_EQ(x1[i], plain[i]) << i;
+    if (i % 3 == 1 && i < m - 1) (plain[i] == x[i] ? kept : cleared) += 1;
+  }
+  EXPECT_GT(kept, 0);
+  EXPECT_GT(cleared, 3);  // the separating and the frictionless
 }
 
 // A 10-layer stack (3 x 3 spheres per layer) solved from rest without warm
