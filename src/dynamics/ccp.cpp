@@ -118,44 +118,13 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
 void CcpProblem::scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
                          std::vector<Vec3>& dw) const {
   const auto nc = std::ptrdiff_t(a_.size());
-  impulse_.resize(mu_.size());
+  impulse_.resize(mu_.size() + 1);  // whole blocks, and one for scatter_bodies' loads
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t k = 0; k < nc; ++k) {
     const auto u = std::size_t(k);
     impulse_[u] = normal(u) * x[3 * u] + tangent1(u) * x[3 * u + 1] + tangent2(u) * x[3 * u + 2];
   }
   scatter_bodies(x, add_free, dv, dw);
-}
-
-void CcpProblem::scatter_bodies(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
-                                std::vector<Vec3>& dw) const {
-  const SolverBodies& B = *bodies_;
-  const auto nb = std::ptrdiff_t(B.inv_mass.size());
-  dv.resize(B.inv_mass.size());
-  dw.resize(B.inv_mass.size());
-#pragma omp parallel for schedule(static) if (nb > kParallelMin)
-  for (std::ptrdiff_t i = 0; i < nb; ++i) {
-    const auto u = std::size_t(i);
-    Vec3 lin = Vec3::Zero(), ang = Vec3::Zero();
-    for (std::uint32_t e = adj_.offset[u]; e < adj_.offset[u + 1]; ++e) {
-      const std::uint32_t entry = adj_.entry[e];
-      const std::size_t k = entry >> 1;
-      if (entry & 1) {
-        lin += impulse_[k];
-        ang += lever_b(k).cross(impulse_[k]);
-      } else {
-        lin -= impulse_[k];
-        ang -= lever_a(k).cross(impulse_[k]);
-      }
-    }
-    dv[u] = B.inv_mass[u] * lin;
-    dw[u] = B.inv_inertia[u] * ang;
-    if (add_free) {
-      dv[u] += B.v_free[u];
-      dw[u] += B.w_free[u];
-    }
-  }
-  for (std::size_t j = 0; j < rows_.size(); ++j) apply_row(B, rows_[j], x[3 * a_.size() + j], dv, dw);
 }
 
 void CcpProblem::gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias,
@@ -476,6 +445,45 @@ void trial_row(double x, double x_old, double gx, double g_old, CcpProblem::Mome
 
 }  // namespace
 
+void CcpProblem::scatter_bodies(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
+                                std::vector<Vec3>& dw) const {
+  const SolverBodies& B = *bodies_;
+  const auto nb = std::ptrdiff_t(B.inv_mass.size());
+  dv.resize(B.inv_mass.size());
+  dw.resize(B.inv_mass.size());
+#pragma omp parallel for schedule(static) if (nb > kParallelMin)
+  for (std::ptrdiff_t i = 0; i < nb; ++i) {
+    const auto u = std::size_t(i);
+    // Lanes x, y, z of a vector; the fourth is never read (the loads of
+    // impulse_ take the next impulse's x into it; impulse_ has one to spare).
+    d4 lin = {}, ang = {};
+    for (std::uint32_t e = adj_.offset[u]; e < adj_.offset[u + 1]; ++e) {
+      const std::uint32_t entry = adj_.entry[e], side = entry & 1;
+      const std::size_t k = entry >> 1;
+      const d4 p = load(impulse_[k].data());
+      const FrameScalar* f =
+          &frame_[k / kLanes * kFrameBlock + (9 + 3 * side) * kLanes + k % kLanes];
+      const d4 r = {double(f[0]), double(f[kLanes]), double(f[2 * kLanes]), 0.0};
+      // The lever r x p as Eigen's cross computes it; the sign is exact, so
+      // the sums have the bits of the scalar code's += and -=.
+      const d4 r_yzx = __builtin_shufflevector(r, r, 1, 2, 0, 3);
+      const d4 r_zxy = __builtin_shufflevector(r, r, 2, 0, 1, 3);
+      const d4 p_yzx = __builtin_shufflevector(p, p, 1, 2, 0, 3);
+      const d4 p_zxy = __builtin_shufflevector(p, p, 2, 0, 1, 3);
+      const d4 sign = side ? d4{1.0, 1.0, 1.0, 1.0} : d4{-1.0, -1.0, -1.0, -1.0};
+      lin += sign * p;
+      ang += sign * (r_yzx * p_zxy - r_zxy * p_yzx);
+    }
+    dv[u] = B.inv_mass[u] * Vec3(lin[0], lin[1], lin[2]);
+    dw[u] = B.inv_inertia[u] * Vec3(ang[0], ang[1], ang[2]);
+    if (add_free) {
+      dv[u] += B.v_free[u];
+      dw[u] += B.w_free[u];
+    }
+  }
+  for (std::size_t j = 0; j < rows_.size(); ++j) apply_row(B, rows_[j], x[3 * a_.size() + j], dv, dw);
+}
+
 CcpProblem::TrialSums& CcpProblem::TrialSums::operator+=(const TrialSums& o) {
   dd += o.dd;
   dnd += o.dnd;
@@ -489,7 +497,7 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
                                             ConstSpan g_old, Momentum mo, double step) const {
   static_assert(kLanes == kVec);
   const std::size_t nc = a_.size();
-  impulse_.resize(mu_.size());  // whole blocks
+  impulse_.resize(mu_.size() + 1);  // whole blocks, and one for scatter_bodies' loads
   const bool old = mo.cb != 0.0;
   auto pass = [&](std::size_t begin, std::size_t end, TrialSums& part) {
     TrialLanes sums;
