@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <type_traits>
 
 #if defined(__SSE2__)
 #include <immintrin.h>
@@ -246,9 +247,15 @@ constexpr std::size_t kVec = 4;  // lanes of d4: CcpProblem::kLanes
 }
 [[gnu::always_inline]] inline void store(double* p, d4 v) { std::memcpy(p, &v, sizeof v); }
 [[gnu::always_inline]] inline d4 widen(const float* p) {
+#if defined(__AVX__)
+  // One vcvtps2pd from memory: GCC 12 splits __builtin_convertvector into
+  // two halves through the stack (5 instructions, 24 of them per block).
+  return d4(_mm256_cvtps_pd(_mm_loadu_ps(p)));
+#else
   f4 f;
   std::memcpy(&f, p, sizeof f);
   return __builtin_convertvector(f, d4);
+#endif
 }
 [[gnu::always_inline]] inline d4 widen(const double* p) { return load(p); }
 [[gnu::always_inline]] inline d4 select(decltype(d4{} < d4{}) mask, d4 a, d4 b) { return mask ? a : b; }
@@ -343,6 +350,16 @@ class BlockRows {
   std::size_t i0_, rows_;
   double pad_[5][12];  // filled only for the short block
 };
+
+// block(k0, count) over the contacts [begin, end) in blocks of four: the
+// whole blocks with count a constant, so the hot loop has no padding code,
+// then the short one.
+template <class Block>
+[[gnu::always_inline]] inline void for_blocks(std::size_t begin, std::size_t end, Block&& block) {
+  std::size_t k0 = begin;
+  for (; k0 + kVec <= end; k0 += kVec) block(k0, std::integral_constant<std::size_t, kVec>{});
+  if (k0 < end) block(k0, end - k0);
+}
 
 // Lane sums of a trial's dd, d.gy and uphill (CcpProblem::TrialSums).
 struct TrialLanes {
@@ -501,15 +518,15 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
   const bool old = mo.cb != 0.0;
   auto pass = [&](std::size_t begin, std::size_t end, TrialSums& part) {
     TrialLanes sums;
-    for (std::size_t k0 = begin; k0 < end; k0 += kLanes) {
-      BlockRows blk(3 * k0, 3 * std::min(kLanes, end - k0));
+    for_blocks(begin, end, [&](std::size_t k0, auto count) {
+      BlockRows blk(3 * k0, 3 * count);
       const double *px = blk.in(x, 0), *pgx = blk.in(gx, 1);
       const double *pold = old ? blk.in(x_old, 2) : px, *pgold = old ? blk.in(g_old, 3) : pgx;
       double* p1 = blk.out(x1, 4);
       const Rows r = trial_block(px, pold, pgx, pgold, mo, step, load(mu_.data() + k0), p1, sums);
       blk.flush(x1, 4);
       store_impulses(&frame_[k0 / kLanes * kFrameBlock], r, impulse_[k0].data());
-    }
+    });
     part = {lane_sum(sums.dd), -lane_sum(sums.d_gy), lane_sum(sums.uphill)};
   };
   TrialSums total = reduce_chunks<TrialSums>(nc, pass);
@@ -529,8 +546,7 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
   const std::size_t nc = a_.size();
   auto pass = [&](std::size_t begin, std::size_t end, TrialSums& part) {
     d4 d_g1 = {}, res2 = {}, resm = {};
-    for (std::size_t k0 = begin; k0 < end; k0 += kLanes) {
-      const std::size_t count = std::min(kLanes, end - k0);
+    for_blocks(begin, end, [&](std::size_t k0, auto count) {
       BlockRows blk(3 * k0, 3 * count);
       const Rows g = gather_block(&frame_[k0 / kLanes * kFrameBlock], &a_[k0], &b_[k0], count,
                                   dv_, dw_, &bias_[k0]);
@@ -552,7 +568,7 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
         res2 += res * res;
         resm = vmax(resm, vabs(res));
       }
-    }
+    });
     part.dnd = lane_sum(d_g1);
     part.res_sum = lane_sum(res2);
     part.res_max = lane_max(resm);
