@@ -79,6 +79,7 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   // Padded to whole blocks of the kernel with zeros (apgd_step).
   mu_.resize((nc + kLanes - 1) / kLanes * kLanes, 0.0);
   frame_.assign((nc + kLanes - 1) / kLanes * kFrameBlock, 0.0f);  // padding lanes: 0
+  lever_.assign(6 * mu_.size() + 1, 0.0f);
   bias_.assign(mu_.size(), 0.0);
   double diag_max = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : diag_max) if (std::ptrdiff_t(nc) > kParallelMin)
@@ -90,9 +91,13 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     const Vec3 ra = c.point[k] - B.x[std::size_t(a_[k])];
     const Vec3 rb = c.point[k] - B.x[std::size_t(b_[k])];
     FrameScalar* f = &frame_[k / kLanes * kFrameBlock + k % kLanes];
-    const Vec3* parts[] = {&n, &t1, &t2, &ra, &rb};
+    const Vec3* parts[] = {&n, &t1, &t2};
     for (const Vec3* part : parts)
       for (int c = 0; c < 3; ++c, f += kLanes) *f = FrameScalar((*part)[c]);
+    for (int c = 0; c < 3; ++c) {
+      lever_[6 * k + std::size_t(c)] = FrameScalar(ra[c]);
+      lever_[6 * k + 3 + std::size_t(c)] = FrameScalar(rb[c]);
+    }
     // Stabilization: close a positive gap exactly this step, push an overlap
     // out no faster than the recovery speed.
     double bias = std::max(c.gap[k] / h, -settings.recovery_speed);
@@ -407,11 +412,46 @@ struct TrialLanes {
   store_rows(out, imp);
 }
 
+// A block's lever arms (lever_ from contact k0 on: 24 numbers), component
+// by component, lane = contact.
+[[gnu::always_inline]] inline void levers(const double* L, d4 ra[3], d4 rb[3]) {
+  for (std::size_t c = 0; c < 3; ++c) {
+    ra[c] = d4{L[c], L[6 + c], L[12 + c], L[18 + c]};
+    rb[c] = d4{L[3 + c], L[9 + c], L[15 + c], L[21 + c]};
+  }
+}
+[[gnu::always_inline]] inline void levers(const float* L, d4 ra[3], d4 rb[3]) {
+#if defined(__AVX__)
+  // Contact l's [ax ay az bx] at L + 6 l, transposed; then its [by bz].
+  __m128 r0 = _mm_loadu_ps(L), r1 = _mm_loadu_ps(L + 6), r2 = _mm_loadu_ps(L + 12),
+         r3 = _mm_loadu_ps(L + 18);
+  _MM_TRANSPOSE4_PS(r0, r1, r2, r3);
+  auto pair = [&](std::size_t l) {
+    double d;  // two floats, by and bz, as one 8-byte load
+    std::memcpy(&d, L + 6 * l + 4, sizeof d);
+    return _mm_castpd_ps(_mm_set_sd(d));
+  };
+  const __m128 s01 = _mm_movelh_ps(pair(0), pair(1)), s23 = _mm_movelh_ps(pair(2), pair(3));
+  ra[0] = d4(_mm256_cvtps_pd(r0));
+  ra[1] = d4(_mm256_cvtps_pd(r1));
+  ra[2] = d4(_mm256_cvtps_pd(r2));
+  rb[0] = d4(_mm256_cvtps_pd(r3));
+  rb[1] = d4(_mm256_cvtps_pd(_mm_shuffle_ps(s01, s23, _MM_SHUFFLE(2, 0, 2, 0))));
+  rb[2] = d4(_mm256_cvtps_pd(_mm_shuffle_ps(s01, s23, _MM_SHUFFLE(3, 1, 3, 1))));
+#else
+  for (std::size_t c = 0; c < 3; ++c) {
+    ra[c] = d4{double(L[c]), double(L[6 + c]), double(L[12 + c]), double(L[18 + c])};
+    rb[c] = d4{double(L[3 + c]), double(L[9 + c]), double(L[15 + c]), double(L[21 + c])};
+  }
+#endif
+}
+
 // g = J dv + b of a block's contacts: count (<= 4) contacts from a, b (body
-// indices), frame block f and bias; lane = contact, lanes past count zero.
-[[gnu::always_inline]] inline Rows gather_block(const FrameScalar* f, const std::int32_t* a,
-                                                const std::int32_t* b, std::size_t count,
-                                                const std::vector<Vec3>& dv,
+// indices), frame block f, lever arms and bias; lane = contact, lanes past
+// count zero.
+[[gnu::always_inline]] inline Rows gather_block(const FrameScalar* f, const FrameScalar* lever,
+                                                const std::int32_t* a, const std::int32_t* b,
+                                                std::size_t count, const std::vector<Vec3>& dv,
                                                 const std::vector<Vec3>& dw, const double* bias) {
   std::size_t ia[kVec], ib[kVec];
   for (std::size_t l = 0; l < kVec; ++l) {
@@ -428,8 +468,8 @@ struct TrialLanes {
     const d4 wa[3] = {lanes(dw, ia, 0), lanes(dw, ia, 1), lanes(dw, ia, 2)};
     const d4 vb[3] = {lanes(dv, ib, 0), lanes(dv, ib, 1), lanes(dv, ib, 2)};
     const d4 wb[3] = {lanes(dw, ib, 0), lanes(dw, ib, 1), lanes(dw, ib, 2)};
-    const d4 ra[3] = {widen(f + 9 * kVec), widen(f + 10 * kVec), widen(f + 11 * kVec)};
-    const d4 rb[3] = {widen(f + 12 * kVec), widen(f + 13 * kVec), widen(f + 14 * kVec)};
+    d4 ra[3], rb[3];
+    levers(lever, ra, rb);
     for (int c = 0; c < 3; ++c) {
       const int c1 = (c + 1) % 3, c2 = (c + 2) % 3;  // w x r, as Eigen's cross
       rel[c] = (vb[c] + (wb[c1] * rb[c2] - wb[c2] * rb[c1])) -
@@ -472,15 +512,13 @@ void CcpProblem::scatter_bodies(ConstSpan x, bool add_free, std::vector<Vec3>& d
   for (std::ptrdiff_t i = 0; i < nb; ++i) {
     const auto u = std::size_t(i);
     // Lanes x, y, z of a vector; the fourth is never read (the loads of
-    // impulse_ take the next impulse's x into it; impulse_ has one to spare).
+    // impulse_ and lever_ take the next number into it; both have a spare).
     d4 lin = {}, ang = {};
     for (std::uint32_t e = adj_.offset[u]; e < adj_.offset[u + 1]; ++e) {
       const std::uint32_t entry = adj_.entry[e], side = entry & 1;
       const std::size_t k = entry >> 1;
       const d4 p = load(impulse_[k].data());
-      const FrameScalar* f =
-          &frame_[k / kLanes * kFrameBlock + (9 + 3 * side) * kLanes + k % kLanes];
-      const d4 r = {double(f[0]), double(f[kLanes]), double(f[2 * kLanes]), 0.0};
+      const d4 r = widen(&lever_[6 * k + 3 * side]);  // its fourth lane is not ours
       // The lever r x p as Eigen's cross computes it; the sign is exact, so
       // the sums have the bits of the scalar code's += and -=.
       const d4 r_yzx = __builtin_shufflevector(r, r, 1, 2, 0, 3);
@@ -548,8 +586,8 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
     d4 d_g1 = {}, res2 = {}, resm = {};
     for_blocks(begin, end, [&](std::size_t k0, auto count) {
       BlockRows blk(3 * k0, 3 * count);
-      const Rows g = gather_block(&frame_[k0 / kLanes * kFrameBlock], &a_[k0], &b_[k0], count,
-                                  dv_, dw_, &bias_[k0]);
+      const Rows g = gather_block(&frame_[k0 / kLanes * kFrameBlock], &lever_[6 * k0], &a_[k0],
+                                  &b_[k0], count, dv_, dw_, &bias_[k0]);
       double* pg = blk.out(g1, 3);
       store_rows(pg, g);
       blk.flush(g1, 3);

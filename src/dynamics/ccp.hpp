@@ -233,11 +233,16 @@ class CcpProblem {
   // Contacts, structure of arrays.
   std::vector<std::int32_t> a_, b_;
   // Frames in blocks of kLanes contacts: component c (0-2 the normal, 3-5
-  // and 6-8 the tangents, 9-11 and 12-14 the lever arms of a and b) of
-  // contact k at frame_[k / kLanes * kFrameBlock + c * kLanes + k % kLanes],
-  // so the kernel loads one component of four contacts at once.
-  static constexpr std::size_t kLanes = 4, kFrameBlock = 15 * kLanes;
+  // and 6-8 the tangents) of contact k at
+  // frame_[k / kLanes * kFrameBlock + c * kLanes + k % kLanes], so the
+  // kernel loads one component of four contacts at once.
+  static constexpr std::size_t kLanes = 4, kFrameBlock = 9 * kLanes;
   std::vector<FrameScalar> frame_;
+  // Lever arms contact by contact, a's then b's: lever_[6 k + 3 side + c].
+  // The bodies' pass reads one contact's arm of one side, as one vector;
+  // the gather reads a block's, and transposes them. One spare at the end:
+  // a vector load of the last arm reads a fourth number it does not use.
+  std::vector<FrameScalar> lever_;
   Vec3 frame(std::size_t k, std::size_t part) const {
     const FrameScalar* f = &frame_[k / kLanes * kFrameBlock + 3 * part * kLanes + k % kLanes];
     return {double(f[0]), double(f[kLanes]), double(f[2 * kLanes])};
@@ -245,8 +250,12 @@ class CcpProblem {
   Vec3 normal(std::size_t k) const { return frame(k, 0); }
   Vec3 tangent1(std::size_t k) const { return frame(k, 1); }
   Vec3 tangent2(std::size_t k) const { return frame(k, 2); }
-  Vec3 lever_a(std::size_t k) const { return frame(k, 3); }
-  Vec3 lever_b(std::size_t k) const { return frame(k, 4); }
+  Vec3 lever(std::size_t k, std::size_t side) const {
+    const FrameScalar* r = &lever_[6 * k + 3 * side];
+    return {double(r[0]), double(r[1]), double(r[2])};
+  }
+  Vec3 lever_a(std::size_t k) const { return lever(k, 0); }
+  Vec3 lever_b(std::size_t k) const { return lever(k, 1); }
   std::vector<double> mu_, bias_;
   std::vector<BilateralRow> rows_;
   std::vector<double> row_diag_;
