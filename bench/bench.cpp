@@ -170,10 +170,12 @@ int main(int argc, char** argv) {
   r.iterations = kIterations;
   r.machine = read_machine();
   const Plan p = plan(o.quick);
+  r.bandwidth_start = measure_bandwidth(r.machine.procs);
   measure_beds(p, r);
   measure_memory(p, r);
   for (std::size_t n : p.broadphase) r.broadphase.push_back(measure_broadphase(n));
   if (!o.scene.empty()) measure_scene(o, r);
+  r.bandwidth_end = measure_bandwidth(r.machine.procs);
   r.seconds = since(t0);
   const CpuClock end = read_cpu_clock(), &start = r.machine.cpu_start;
   r.machine.others_cores = ((end.all - start.all) - (end.own - start.own)) / r.seconds;

@@ -64,6 +64,17 @@ MemoryProbe probe_memory(const std::string& exe, std::size_t n, bool packed, int
 // The child's side: build, step, print "particles contacts base peak".
 int run_memory_probe(std::size_t n, bool packed, int threads);
 
+// The machine's memory bandwidth: STREAM's triad a = b + 3 c over three
+// 64 MiB arrays (twice the L3), best of 5, counted as STREAM counts it
+// (24 bytes an element). The bench takes it at its start and end: a VM's
+// bandwidth moves with its neighbours, and the beds past the cache with it,
+// so two runs' solver figures compare only beside their bandwidths.
+struct Bandwidth {
+  double one = 0, two = 0;  // bytes/s at 1 and 2 threads (0: not measured)
+};
+double measure_triad(int threads);
+Bandwidth measure_bandwidth(int procs);
+
 // ---- broadphase (broadphase.cpp) -------------------------------------------
 
 struct BroadphaseRun {
@@ -138,6 +149,7 @@ struct Results {
   bool million_measured = false;
   std::vector<BroadphaseRun> broadphase;
   std::optional<SceneRun> scene;
+  Bandwidth bandwidth_start, bandwidth_end;
   double seconds = 0;  // the whole bench
 };
 void write_csv(const Results& r, const std::string& path);

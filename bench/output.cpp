@@ -189,6 +189,11 @@ void write_csv(const Results& r, const std::string& path) {
       c.row("broadphase_bullet_dbvt", b.particles, b.bullet_pairs, 1, b.bullet, "s");
   }
   if (r.scene && r.scene->wall_total > 0) scene_rows(c, *r.scene);
+  for (const auto& [name, bw] : {std::pair{"memory_bandwidth_triad_start", r.bandwidth_start},
+                                 std::pair{"memory_bandwidth_triad_end", r.bandwidth_end}}) {
+    c.row(name, 0, 0, 1, bw.one, "B/s");
+    if (bw.two > 0) c.row(name, 0, 0, 2, bw.two, "B/s");
+  }
   c.row("bench_wall", 0, 0, r.machine.procs, r.seconds, "s");
   c.row("others_cores", 0, 0, r.machine.procs, r.machine.others_cores, "cores");
 }
@@ -227,6 +232,14 @@ void header(std::ostream& o, const Results& r) {
     << " GiB. Build: " << m.build << ". The bench took " << f("%.0f", r.seconds)
     << " s; other processes (and other guests of the host) took " << f("%.2f", m.others_cores)
     << " cores on average meanwhile.\n";
+  auto bandwidth = [&](const Bandwidth& bw) {
+    return f("%.1f", bw.one / 1e9) + " GB/s on 1 thread" +
+           (bw.two > 0 ? ", " + f("%.1f", bw.two / 1e9) + " on 2" : std::string());
+  };
+  o << "\nMemory bandwidth (STREAM triad over 3 x 64 MiB, best of 5), which moves with the "
+       "VM's neighbours and the beds past the cache with it: "
+    << bandwidth(r.bandwidth_start) << " at the start, " << bandwidth(r.bandwidth_end)
+    << " at the end.\n";
   if (m.others_cores > 0.1)
     o << "\n**The machine was busy: figures are not representative. Re-run on a quiet "
          "machine.**\n";
