@@ -124,7 +124,7 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
 void CcpProblem::scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
                          std::vector<Vec3>& dw) const {
   const auto nc = std::ptrdiff_t(a_.size());
-  impulse_.resize(mu_.size() + 1);  // whole blocks, and one for scatter_bodies' loads
+  impulse_.resize(mu_.size() + 1);  // whole blocks, and a spare for scatter_bodies' loads
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t k = 0; k < nc; ++k) {
     const auto u = std::size_t(k);
@@ -414,14 +414,16 @@ struct TrialLanes {
 
 // A block's lever arms (lever_ from contact k0 on: 24 numbers), component
 // by component, lane = contact.
-[[gnu::always_inline]] inline void levers(const double* L, d4 ra[3], d4 rb[3]) {
+template <class T>
+[[gnu::always_inline]] inline void levers(const T* L, d4 ra[3], d4 rb[3]) {
   for (std::size_t c = 0; c < 3; ++c) {
-    ra[c] = d4{L[c], L[6 + c], L[12 + c], L[18 + c]};
-    rb[c] = d4{L[3 + c], L[9 + c], L[15 + c], L[21 + c]};
+    ra[c] = d4{double(L[c]), double(L[6 + c]), double(L[12 + c]), double(L[18 + c])};
+    rb[c] = d4{double(L[3 + c]), double(L[9 + c]), double(L[15 + c]), double(L[21 + c])};
   }
 }
-[[gnu::always_inline]] inline void levers(const float* L, d4 ra[3], d4 rb[3]) {
 #if defined(__AVX__)
+// The same for float arms, by a 4x4 transpose.
+[[gnu::always_inline]] inline void levers(const float* L, d4 ra[3], d4 rb[3]) {
   // Contact l's [ax ay az bx] at L + 6 l, transposed; then its [by bz].
   __m128 r0 = _mm_loadu_ps(L), r1 = _mm_loadu_ps(L + 6), r2 = _mm_loadu_ps(L + 12),
          r3 = _mm_loadu_ps(L + 18);
@@ -438,13 +440,8 @@ struct TrialLanes {
   rb[0] = d4(_mm256_cvtps_pd(r3));
   rb[1] = d4(_mm256_cvtps_pd(_mm_shuffle_ps(s01, s23, _MM_SHUFFLE(2, 0, 2, 0))));
   rb[2] = d4(_mm256_cvtps_pd(_mm_shuffle_ps(s01, s23, _MM_SHUFFLE(3, 1, 3, 1))));
-#else
-  for (std::size_t c = 0; c < 3; ++c) {
-    ra[c] = d4{double(L[c]), double(L[6 + c]), double(L[12 + c]), double(L[18 + c])};
-    rb[c] = d4{double(L[3 + c]), double(L[9 + c]), double(L[15 + c]), double(L[21 + c])};
-  }
-#endif
 }
+#endif
 
 // g = J dv + b of a block's contacts: count (<= 4) contacts from a, b (body
 // indices), frame block f, lever arms and bias; lane = contact, lanes past
@@ -552,7 +549,7 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
                                             ConstSpan g_old, Momentum mo, double step) const {
   static_assert(kLanes == kVec);
   const std::size_t nc = a_.size();
-  impulse_.resize(mu_.size() + 1);  // whole blocks, and one for scatter_bodies' loads
+  impulse_.resize(mu_.size() + 1);  // whole blocks, and a spare for scatter_bodies' loads
   const bool old = mo.cb != 0.0;
   auto pass = [&](std::size_t begin, std::size_t end, TrialSums& part) {
     TrialLanes sums;
