@@ -57,23 +57,25 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
       const std::int64_t cx = cell_coord(c.x(), inv_cell), cy = cell_coord(c.y(), inv_cell),
                          cz = cell_coord(c.z(), inv_cell);
       const std::size_t first = out.size();
+      // z is the key's lowest field, so the three cells z - 1 .. z + 1 of a
+      // column (x, y) are one run of the sorted entries: one search a column.
+      const std::int64_t z_lo = std::max<std::int64_t>(cz - 1, 0);
+      const std::int64_t z_hi = std::min<std::int64_t>(cz + 1, kCellMax);
       for (std::int64_t dx = -1; dx <= 1; ++dx)
-        for (std::int64_t dy = -1; dy <= 1; ++dy)
-          for (std::int64_t dz = -1; dz <= 1; ++dz) {
-            const std::int64_t x = cx + dx, y = cy + dy, z = cz + dz;
-            if (x < 0 || y < 0 || z < 0 || x > kCellMax || y > kCellMax || z > kCellMax)
-              continue;
-            const std::uint64_t key = pack(x, y, z);
-            auto it = std::lower_bound(entries_.begin(), entries_.end(), key,
-                                       [](const Entry& e, std::uint64_t k) { return e.cell < k; });
-            for (; it != entries_.end() && it->cell == key; ++it) {
-              const std::int32_t j = it->index;
-              if (std::size_t(j) <= i) continue;
-              const double reach = radii[i] + radii[std::size_t(j)];
-              if ((centers[std::size_t(j)] - c).squaredNorm() < reach * reach)
-                out.emplace_back(std::int32_t(i), j);
-            }
+        for (std::int64_t dy = -1; dy <= 1; ++dy) {
+          const std::int64_t x = cx + dx, y = cy + dy;
+          if (x < 0 || y < 0 || x > kCellMax || y > kCellMax) continue;
+          const std::uint64_t lo = pack(x, y, z_lo), hi = pack(x, y, z_hi);
+          auto it = std::lower_bound(entries_.begin(), entries_.end(), lo,
+                                     [](const Entry& e, std::uint64_t k) { return e.cell < k; });
+          for (; it != entries_.end() && it->cell <= hi; ++it) {
+            const std::int32_t j = it->index;
+            if (std::size_t(j) <= i) continue;
+            const double reach = radii[i] + radii[std::size_t(j)];
+            if ((centers[std::size_t(j)] - c).squaredNorm() < reach * reach)
+              out.emplace_back(std::int32_t(i), j);
           }
+        }
       std::sort(out.begin() + std::ptrdiff_t(first), out.end());
     }
   }
