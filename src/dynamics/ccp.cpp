@@ -81,6 +81,9 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   frame_.assign((nc + kLanes - 1) / kLanes * kFrameBlock, 0.0f);  // padding lanes: 0
   lever_.assign(6 * mu_.size() + 1, 0.0f);
   bias_.assign(mu_.size(), 0.0);
+  // World impulses of whole blocks (apgd_step stores them four at a time),
+  // and a spare: scatter_bodies loads each as a four-number vector.
+  impulse_.resize(mu_.size() + 1);
   double diag_max = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : diag_max) if (std::ptrdiff_t(nc) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(nc); ++s) {
@@ -124,7 +127,6 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
 void CcpProblem::scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
                          std::vector<Vec3>& dw) const {
   const auto nc = std::ptrdiff_t(a_.size());
-  impulse_.resize(mu_.size() + 1);  // whole blocks, and a spare for scatter_bodies' loads
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t k = 0; k < nc; ++k) {
     const auto u = std::size_t(k);
@@ -549,7 +551,6 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
                                             ConstSpan g_old, Momentum mo, double step) const {
   static_assert(kLanes == kVec);
   const std::size_t nc = a_.size();
-  impulse_.resize(mu_.size() + 1);  // whole blocks, and a spare for scatter_bodies' loads
   const bool old = mo.cb != 0.0;
   auto pass = [&](std::size_t begin, std::size_t end, TrialSums& part) {
     TrialLanes sums;
