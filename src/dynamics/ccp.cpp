@@ -14,15 +14,6 @@
 namespace ces {
 namespace {
 
-// A tangent basis that depends only on n, so frames are reproducible.
-void tangents(const Vec3& n, Vec3& t1, Vec3& t2) {
-  const Vec3 helper = std::abs(n.x()) < 0.57735 ? Vec3::UnitX()
-                      : std::abs(n.y()) < 0.57735 ? Vec3::UnitY()
-                                                  : Vec3::UnitZ();
-  t1 = n.cross(helper).normalized();
-  t2 = n.cross(t1);
-}
-
 double row_mass(const SolverBodies& B, int i, const Vec3& lin, const Vec3& ang) {
   if (i < 0) return 0.0;
   const auto u = std::size_t(i);
@@ -75,28 +66,24 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   const std::size_t nc = c.size();
   a_ = c.body_a;
   b_ = c.body_b;
-  mu_ = c.friction;
-  // Padded to whole blocks of the kernel with zeros (apgd_step).
-  mu_.resize((nc + kLanes - 1) / kLanes * kLanes, 0.0);
-  frame_.assign((nc + kLanes - 1) / kLanes * kFrameBlock, 0.0f);  // padding lanes: 0
-  lever_.assign(6 * mu_.size() + 1, 0.0f);
-  bias_.assign(mu_.size(), 0.0);
-  // World impulses of whole blocks (apgd_step stores them four at a time),
-  // and a spare: scatter_bodies loads each as a four-number vector.
-  impulse_.resize(mu_.size() + 1);
+  // Padded to whole blocks of the kernel (apgd_step) with zeros.
+  const std::size_t padded = (nc + kLanes - 1) / kLanes * kLanes;
+  frame_.assign(padded / kLanes * kFrameBlock, 0.0f);
+  lever_.assign(6 * padded + 1, 0.0f);
+  bias_.assign(padded, 0.0);
+  // World impulses for scatter_bodies, and a spare: it loads each as a
+  // four-number vector.
+  impulse_.resize(3 * nc + 1);
   double diag_max = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : diag_max) if (std::ptrdiff_t(nc) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(nc); ++s) {
     const auto k = std::size_t(s);
     const Vec3& n = c.normal[k];
-    Vec3 t1, t2;
-    tangents(n, t1, t2);
     const Vec3 ra = c.point[k] - B.x[std::size_t(a_[k])];
     const Vec3 rb = c.point[k] - B.x[std::size_t(b_[k])];
     FrameScalar* f = &frame_[k / kLanes * kFrameBlock + k % kLanes];
-    const Vec3* parts[] = {&n, &t1, &t2};
-    for (const Vec3* part : parts)
-      for (int c = 0; c < 3; ++c, f += kLanes) *f = FrameScalar((*part)[c]);
+    for (int c = 0; c < 3; ++c) f[std::size_t(c) * kLanes] = FrameScalar(n[c]);
+    f[3 * kLanes] = FrameScalar(c.friction[k]);
     for (int c = 0; c < 3; ++c) {
       lever_[6 * k + std::size_t(c)] = FrameScalar(ra[c]);
       lever_[6 * k + 3 + std::size_t(c)] = FrameScalar(rb[c]);
@@ -130,9 +117,11 @@ void CcpProblem::scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t k = 0; k < nc; ++k) {
     const auto u = std::size_t(k);
-    impulse_[u] = normal(u) * x[3 * u] + tangent1(u) * x[3 * u + 1] + tangent2(u) * x[3 * u + 2];
+    const Frame F = frame(u);
+    const Vec3 P = F.n * x[3 * u] + F.t1 * x[3 * u + 1] + F.t2 * x[3 * u + 2];
+    std::copy_n(P.data(), 3, &impulse_[3 * u]);
   }
-  scatter_bodies(x, add_free, dv, dw);
+  scatter_bodies(impulse_.data(), x, add_free, dv, dw);
 }
 
 void CcpProblem::gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias,
@@ -142,9 +131,10 @@ void CcpProblem::gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, 
   for (std::ptrdiff_t s = 0; s < nc; ++s) {
     const auto k = std::size_t(s);
     const Vec3 rel = point_velocity(v, w, b_[k], lever_b(k)) - point_velocity(v, w, a_[k], lever_a(k));
-    y[3 * k] = normal(k).dot(rel) + (add_bias ? bias_[k] : 0.0);
-    y[3 * k + 1] = tangent1(k).dot(rel);
-    y[3 * k + 2] = tangent2(k).dot(rel);
+    const Frame F = frame(k);
+    y[3 * k] = F.n.dot(rel) + (add_bias ? bias_[k] : 0.0);
+    y[3 * k + 1] = F.t1.dot(rel);
+    y[3 * k + 2] = F.t2.dot(rel);
   }
   gather_rows(v, w, add_bias, y);
 }
@@ -173,7 +163,7 @@ void CcpProblem::project(Span x) const {
   const auto nc = std::ptrdiff_t(a_.size());
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t k = 0; k < nc; ++k)
-    project_cone(mu_[std::size_t(k)], x[3 * std::size_t(k)], x[3 * std::size_t(k) + 1],
+    project_cone(friction(std::size_t(k)), x[3 * std::size_t(k)], x[3 * std::size_t(k) + 1],
                  x[3 * std::size_t(k) + 2]);
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     double& v = x[3 * a_.size() + j];
@@ -187,7 +177,7 @@ void CcpProblem::projected_step(ConstSpan y, ConstSpan g, double step, Span out)
   for (std::ptrdiff_t k = 0; k < nc; ++k) {
     const auto i = 3 * std::size_t(k);
     double gn = y[i] - step * g[i], g1 = y[i + 1] - step * g[i + 1], g2 = y[i + 2] - step * g[i + 2];
-    project_cone(mu_[std::size_t(k)], gn, g1, g2);
+    project_cone(friction(std::size_t(k)), gn, g1, g2);
     out[i] = gn;
     out[i + 1] = g1;
     out[i + 2] = g2;
@@ -200,21 +190,19 @@ void CcpProblem::projected_step(ConstSpan y, ConstSpan g, double step, Span out)
 
 namespace {
 struct ResidualPart {
-  double sum = 0.0, max = 0.0;
+  double sum = 0.0;
   ResidualPart& operator+=(const ResidualPart& o) {
     sum += o.sum;
-    max = std::max(max, o.max);
     return *this;
   }
   void add(double x, double projected, double inv_s) {
     const double r = (x - projected) * inv_s;
     sum += r * r;
-    max = std::max(max, std::abs(r));
   }
 };
 }  // namespace
 
-void CcpProblem::residual(ConstSpan x, ConstSpan g, double& rms, double& max) const {
+double CcpProblem::residual(ConstSpan x, ConstSpan g) const {
   const double s = 1.0 / diag_max_;
   const ResidualPart total = reduce<ResidualPart>(
       [&](std::ptrdiff_t k, double mu, ResidualPart& part) {
@@ -229,18 +217,28 @@ void CcpProblem::residual(ConstSpan x, ConstSpan g, double& rms, double& max) co
         const auto u = std::size_t(i);
         part.add(x[u], std::clamp(x[u] - s * g[u], lo, hi), diag_max_);
       });
-  max = total.max;
-  rms = x.empty() ? 0.0 : std::sqrt(total.sum / double(x.size()));
+  return x.empty() ? 0.0 : std::sqrt(total.sum / double(x.size()));
 }
 
 // ---------------------------------------------------------------------------
 // The APGD kernel: four contacts to a vector (GCC/Clang vector extensions;
 // AVX when the build enables it, two SSE2 halves otherwise). Lane l holds
-// contact 4 b + l of block b. The rows x, g, ... keep their layout, three
-// doubles per contact: a block's 12 are loaded as three vectors and
-// transposed. Each lane does the scalar code's arithmetic in the same
-// order, so the results are those of project_cone and gather; only
-// the sums are added in another order (per lane, lanes at the chunk's end).
+// contact 4 b + l of block b.
+//
+// It runs on world rows: a contact's three rows hold its impulse as a world
+// vector P = n x_n + t1 x_t1 + t2 x_t2, and its gradient is the relative
+// velocity at the contact plus the bias along the normal, J v + b n. The
+// frame (n, t1, t2) is orthonormal, so this change of variables keeps every
+// norm and dot product APGD takes and the iteration is the same, but the
+// tangents are never needed: the cone is |P - n (n.P)| <= mu n.P, the
+// impulses the bodies' pass sums are the iterate itself (no vector of world
+// impulses written and read back), and the gather gives the gradient
+// without three dot products. Only n and mu are stored: 16 bytes a contact
+// instead of 44. solve_apgd changes to world rows at its start and back at
+// its end (to_world, to_local).
+//
+// The rows keep their layout, three doubles per contact: a block's 12 are
+// loaded as three vectors and transposed to x, y, z lanes.
 namespace {
 
 using d4 = double __attribute__((vector_size(32)));
@@ -267,7 +265,6 @@ constexpr std::size_t kVec = 4;  // lanes of d4: CcpProblem::kLanes
 [[gnu::always_inline]] inline d4 widen(const double* p) { return load(p); }
 [[gnu::always_inline]] inline d4 select(decltype(d4{} < d4{}) mask, d4 a, d4 b) { return mask ? a : b; }
 [[gnu::always_inline]] inline d4 vmax(d4 a, d4 b) { return select(a < b, b, a); }  // std::max(a, b)'s lanes
-[[gnu::always_inline]] inline d4 vabs(d4 a) { return select(a < 0.0, -a, a); }
 [[gnu::always_inline]] inline d4 vsqrt(d4 a) {
 #if defined(__AVX__)
   return d4(_mm256_sqrt_pd(__m256d(a)));
@@ -279,25 +276,23 @@ constexpr std::size_t kVec = 4;  // lanes of d4: CcpProblem::kLanes
 #endif
 }
 double lane_sum(d4 a) { return (a[0] + a[1]) + (a[2] + a[3]); }
-double lane_max(d4 a) { return std::max(std::max(a[0], a[1]), std::max(a[2], a[3])); }
 
-// Three rows (normal, t1, t2) of four contacts, lane = contact.
-struct Rows {
-  d4 n, t1, t2;
+// The x, y, z rows of four contacts, lane = contact.
+struct Lanes3 {
+  d4 c[3];
 };
-// 12 doubles [n0 t0 u0 n1 t1 u1 ...] <-> the rows.
-[[gnu::always_inline]] inline Rows load_rows(const double* p) {
+// 12 doubles [x0 y0 z0 x1 y1 z1 ...] <-> the lanes.
+[[gnu::always_inline]] inline Lanes3 load_rows(const double* p) {
   const d4 a0 = load(p), a1 = load(p + 4), a2 = load(p + 8);
-  return {__builtin_shufflevector(__builtin_shufflevector(a0, a1, 0, 3, 6, 7), a2, 0, 1, 2, 5),
-          __builtin_shufflevector(__builtin_shufflevector(a0, a1, 1, 4, 7, 7), a2, 0, 1, 2, 6),
-          __builtin_shufflevector(__builtin_shufflevector(a0, a1, 2, 5, 5, 5), a2, 0, 1, 4, 7)};
+  return {{__builtin_shufflevector(__builtin_shufflevector(a0, a1, 0, 3, 6, 7), a2, 0, 1, 2, 5),
+           __builtin_shufflevector(__builtin_shufflevector(a0, a1, 1, 4, 7, 7), a2, 0, 1, 2, 6),
+           __builtin_shufflevector(__builtin_shufflevector(a0, a1, 2, 5, 5, 5), a2, 0, 1, 4, 7)}};
 }
-[[gnu::always_inline]] inline void store_rows(double* p, const Rows& r) {
-  store(p, __builtin_shufflevector(__builtin_shufflevector(r.n, r.t1, 0, 4, 1, 1), r.t2, 0, 1, 4, 2));
-  store(p + 4,
-        __builtin_shufflevector(__builtin_shufflevector(r.t1, r.t2, 1, 5, 2, 2), r.n, 0, 1, 6, 2));
-  store(p + 8,
-        __builtin_shufflevector(__builtin_shufflevector(r.t2, r.n, 2, 7, 3, 3), r.t1, 0, 1, 7, 2));
+[[gnu::always_inline]] inline void store_rows(double* p, const Lanes3& r) {
+  const d4 &x = r.c[0], &y = r.c[1], &z = r.c[2];
+  store(p, __builtin_shufflevector(__builtin_shufflevector(x, y, 0, 4, 1, 1), z, 0, 1, 4, 2));
+  store(p + 4, __builtin_shufflevector(__builtin_shufflevector(y, z, 1, 5, 2, 2), x, 0, 1, 6, 2));
+  store(p + 8, __builtin_shufflevector(__builtin_shufflevector(z, x, 2, 7, 3, 3), y, 0, 1, 7, 2));
 }
 
 using mask4 = decltype(d4{} < d4{});
@@ -310,30 +305,41 @@ using mask4 = decltype(d4{} < d4{});
 #endif
 }
 
-// project_cone, lane by lane. The sliding case's square root and division
-// are slow (tens of cycles, not pipelined), so a block none of whose lanes
-// slides skips them: 91 % of the blocks in ces_pcb.yaml, where the solve
-// then took 12 % less time, to the same bits.
-[[gnu::always_inline]] inline void project_cone(d4 mu, Rows& g) {
-  const d4 s2 = g.t1 * g.t1 + g.t2 * g.t2, mu2 = mu * mu;
-  const auto inside = (g.n >= 0.0) & (s2 <= mu2 * g.n * g.n);
-  const auto polar = (g.n <= 0.0) & (mu2 * s2 <= g.n * g.n);
-  const d4 zero = {};
+// A block's normals and friction coefficients, lane = contact.
+struct FrameLanes {
+  d4 n[3], mu;
+};
+[[gnu::always_inline]] inline FrameLanes load_frame(const FrameScalar* f) {
+  return {{widen(f), widen(f + kVec), widen(f + 2 * kVec)}, widen(f + 3 * kVec)};
+}
+
+// project_cone's cases on world rows, lane by lane: P = Π(z) onto
+// |P - n (n.P)| <= mu n.P. A sticking contact keeps z as it is. The sliding
+// case's square root and division are slow (tens of cycles, not pipelined),
+// so a block none of whose lanes slides skips them: 91 % of the blocks in
+// ces_pcb.yaml, where the solve then took 12 % less time.
+[[gnu::always_inline]] inline void project_cone(const FrameLanes& F, Lanes3& z) {
+  const d4* n = F.n;
+  const d4 zn = n[0] * z.c[0] + n[1] * z.c[1] + n[2] * z.c[2];
+  const d4 t[3] = {z.c[0] - n[0] * zn, z.c[1] - n[1] * zn, z.c[2] - n[2] * zn};
+  const d4 s2 = t[0] * t[0] + t[1] * t[1] + t[2] * t[2], mu = F.mu, mu2 = mu * mu;
+  const auto inside = (zn >= 0.0) & (s2 <= mu2 * zn * zn);
+  const auto polar = (zn <= 0.0) & (mu2 * s2 <= zn * zn);
+  const d4 zero = {}, pressing = vmax(zn, zero);  // a frictionless lane's normal part
   const auto frictionless = mu <= 0.0;
   const auto keep = ~frictionless & inside, clear = ~frictionless & ~inside & polar;
   if (all_lanes(keep | clear | frictionless)) {
-    g.n = select(frictionless, vmax(g.n, zero), select(keep, g.n, zero));
-    g.t1 = select(keep, g.t1, zero);
-    g.t2 = select(keep, g.t2, zero);
+    for (auto& c : z.c) c = select(keep, c, zero);
+    for (int c = 0; c < 3; ++c) z.c[c] = select(frictionless, n[c] * pressing, z.c[c]);
     return;
   }
   const d4 s = vsqrt(s2);
-  const d4 along = mu * s + g.n, q = 1.0 / ((mu2 + 1.0) * s);
-  const d4 scale = mu * along * q;
-  const d4 n = select(frictionless, vmax(g.n, zero), along * s * q);
-  g.n = select(keep, g.n, select(clear, zero, n));
-  g.t1 = select(keep, g.t1, select(clear | frictionless, zero, g.t1 * scale));
-  g.t2 = select(keep, g.t2, select(clear | frictionless, zero, g.t2 * scale));
+  const d4 along = mu * s + zn, q = 1.0 / ((mu2 + 1.0) * s);
+  const d4 pn = select(frictionless, pressing, along * s * q), scale = mu * along * q;
+  for (int c = 0; c < 3; ++c) {
+    const d4 slid = n[c] * pn + select(frictionless, zero, t[c] * scale);
+    z.c[c] = select(keep, z.c[c], select(clear, zero, slid));
+  }
 }
 
 // The rows 3 k0 .. 3 k0 + 11 of a block: pointers into the vectors for a
@@ -375,11 +381,11 @@ struct TrialLanes {
 
 // One block of a trial (apgd_step): x1 = Π(y - step gy) into p1, with y =
 // ca x - cb x_old and gy = ca gx - cb g_old (pold, pgold unread when cb =
-// 0); adds its sums to `sums`. Returns the projected rows, lane = contact.
-[[gnu::always_inline]] inline Rows trial_block(const double* px, const double* pold,
+// 0); adds its sums to `sums`.
+[[gnu::always_inline]] inline void trial_block(const double* px, const double* pold,
                                                const double* pgx, const double* pgold,
-                                               CcpProblem::Momentum mo, double step, d4 mu,
-                                               double* p1, TrialLanes& sums) {
+                                               CcpProblem::Momentum mo, double step,
+                                               const FrameLanes& F, double* p1, TrialLanes& sums) {
   d4 y[3], gy[3];
   for (std::size_t j = 0; j < 3; ++j) {
     y[j] = load(px + 4 * j);
@@ -390,8 +396,8 @@ struct TrialLanes {
     }
     store(p1 + 4 * j, y[j] - step * gy[j]);
   }
-  Rows r = load_rows(p1);
-  project_cone(mu, r);
+  Lanes3 r = load_rows(p1);
+  project_cone(F, r);
   store_rows(p1, r);
   for (std::size_t j = 0; j < 3; ++j) {
     const d4 v1 = load(p1 + 4 * j), d = v1 - y[j];
@@ -399,19 +405,6 @@ struct TrialLanes {
     sums.d_gy += d * gy[j];
     sums.uphill += gy[j] * (v1 - load(px + 4 * j));
   }
-  return r;
-}
-
-// World impulses n qn + t1 qt1 + t2 qt2 of a block (frame block f), component
-// by component, into 12 doubles.
-[[gnu::always_inline]] inline void store_impulses(const FrameScalar* f, const Rows& r,
-                                                  double* out) {
-  Rows imp;
-  d4* c_out[3] = {&imp.n, &imp.t1, &imp.t2};  // x, y, z components
-  for (std::size_t c = 0; c < 3; ++c)
-    *c_out[c] = widen(f + c * kVec) * r.n + widen(f + (3 + c) * kVec) * r.t1 +
-                widen(f + (6 + c) * kVec) * r.t2;
-  store_rows(out, imp);
 }
 
 // A block's lever arms (lever_ from contact k0 on: 24 numbers), component
@@ -445,13 +438,13 @@ template <class T>
 }
 #endif
 
-// g = J dv + b of a block's contacts: count (<= 4) contacts from a, b (body
-// indices), frame block f, lever arms and bias; lane = contact, lanes past
-// count zero.
-[[gnu::always_inline]] inline Rows gather_block(const FrameScalar* f, const FrameScalar* lever,
-                                                const std::int32_t* a, const std::int32_t* b,
-                                                std::size_t count, const std::vector<Vec3>& dv,
-                                                const std::vector<Vec3>& dw, const double* bias) {
+// g = J dv + b n of a block's contacts (world rows): count (<= 4) contacts
+// from a, b (body indices), frame F, lever arms and bias; lane = contact,
+// lanes past count zero.
+[[gnu::always_inline]] inline Lanes3 gather_block(const FrameLanes& F, const FrameScalar* lever,
+                                                  const std::int32_t* a, const std::int32_t* b,
+                                                  std::size_t count, const std::vector<Vec3>& dv,
+                                                  const std::vector<Vec3>& dw, const double* bias) {
   std::size_t ia[kVec], ib[kVec];
   for (std::size_t l = 0; l < kVec; ++l) {
     ia[l] = std::size_t(a[std::min(l, count - 1)]);
@@ -461,29 +454,24 @@ template <class T>
     return d4{v[i[0]][c], v[i[1]][c], v[i[2]][c], v[i[3]][c]};
   };
   // Relative velocity at the contact points, component by component.
-  d4 rel[3];
-  {
-    const d4 va[3] = {lanes(dv, ia, 0), lanes(dv, ia, 1), lanes(dv, ia, 2)};
-    const d4 wa[3] = {lanes(dw, ia, 0), lanes(dw, ia, 1), lanes(dw, ia, 2)};
-    const d4 vb[3] = {lanes(dv, ib, 0), lanes(dv, ib, 1), lanes(dv, ib, 2)};
-    const d4 wb[3] = {lanes(dw, ib, 0), lanes(dw, ib, 1), lanes(dw, ib, 2)};
-    d4 ra[3], rb[3];
-    levers(lever, ra, rb);
-    for (int c = 0; c < 3; ++c) {
-      const int c1 = (c + 1) % 3, c2 = (c + 2) % 3;  // w x r, as Eigen's cross
-      rel[c] = (vb[c] + (wb[c1] * rb[c2] - wb[c2] * rb[c1])) -
-               (va[c] + (wa[c1] * ra[c2] - wa[c2] * ra[c1]));
-    }
+  const d4 va[3] = {lanes(dv, ia, 0), lanes(dv, ia, 1), lanes(dv, ia, 2)};
+  const d4 wa[3] = {lanes(dw, ia, 0), lanes(dw, ia, 1), lanes(dw, ia, 2)};
+  const d4 vb[3] = {lanes(dv, ib, 0), lanes(dv, ib, 1), lanes(dv, ib, 2)};
+  const d4 wb[3] = {lanes(dw, ib, 0), lanes(dw, ib, 1), lanes(dw, ib, 2)};
+  d4 ra[3], rb[3];
+  levers(lever, ra, rb);
+  const d4 b_n = load(bias);
+  Lanes3 g;
+  for (int c = 0; c < 3; ++c) {
+    const int c1 = (c + 1) % 3, c2 = (c + 2) % 3;  // w x r, as Eigen's cross
+    const d4 rel = (vb[c] + (wb[c1] * rb[c2] - wb[c2] * rb[c1])) -
+                   (va[c] + (wa[c1] * ra[c2] - wa[c2] * ra[c1]));
+    g.c[c] = rel + b_n * F.n[c];
   }
-  auto dot = [&](int part) {
-    const FrameScalar* u = f + 3 * part * kVec;
-    return widen(u) * rel[0] + widen(u + kVec) * rel[1] + widen(u + 2 * kVec) * rel[2];
-  };
-  Rows g = {dot(0) + load(bias), dot(1), dot(2)};
   if (count < kVec) {  // padding lanes: zero, whatever the velocities
     const d4 lane = {0.0, 1.0, 2.0, 3.0};
     const auto valid = lane < double(count);
-    g = {select(valid, g.n, d4{}), select(valid, g.t1, d4{}), select(valid, g.t2, d4{})};
+    for (auto& c : g.c) c = select(valid, c, d4{});
   }
   return g;
 }
@@ -501,8 +489,8 @@ void trial_row(double x, double x_old, double gx, double g_old, CcpProblem::Mome
 
 }  // namespace
 
-void CcpProblem::scatter_bodies(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
-                                std::vector<Vec3>& dw) const {
+void CcpProblem::scatter_bodies(const double* P, ConstSpan x, bool add_free,
+                                std::vector<Vec3>& dv, std::vector<Vec3>& dw) const {
   const SolverBodies& B = *bodies_;
   const auto nb = std::ptrdiff_t(B.inv_mass.size());
   dv.resize(B.inv_mass.size());
@@ -511,23 +499,25 @@ void CcpProblem::scatter_bodies(ConstSpan x, bool add_free, std::vector<Vec3>& d
   for (std::ptrdiff_t i = 0; i < nb; ++i) {
     const auto u = std::size_t(i);
     // Lanes x, y, z of a vector; the fourth is never read (the loads of
-    // impulse_ and lever_ take the next number into it; both have a spare).
-    d4 lin = {}, ang = {};
+    // P and lever_ take the next number into it; both have a spare).
+    // ang_zxy holds r x p rotated by a lane, (z, x, y): r p_yzx - r_yzx p
+    // is that, with the products and differences of Eigen's cross, so it
+    // needs two shuffles per contact instead of four, and one at the end.
+    // The side's sign goes on p (exact), so the sums have the bits of the
+    // scalar code's += and -=.
+    d4 lin = {}, ang_zxy = {};
     for (std::uint32_t e = adj_.offset[u]; e < adj_.offset[u + 1]; ++e) {
       const std::uint32_t entry = adj_.entry[e], side = entry & 1;
       const std::size_t k = entry >> 1;
-      const d4 p = load(impulse_[k].data());
-      const d4 r = widen(&lever_[6 * k + 3 * side]);  // its fourth lane is not ours
-      // The lever r x p as Eigen's cross computes it; the sign is exact, so
-      // the sums have the bits of the scalar code's += and -=.
-      const d4 r_yzx = __builtin_shufflevector(r, r, 1, 2, 0, 3);
-      const d4 r_zxy = __builtin_shufflevector(r, r, 2, 0, 1, 3);
-      const d4 p_yzx = __builtin_shufflevector(p, p, 1, 2, 0, 3);
-      const d4 p_zxy = __builtin_shufflevector(p, p, 2, 0, 1, 3);
       const d4 sign = side ? d4{1.0, 1.0, 1.0, 1.0} : d4{-1.0, -1.0, -1.0, -1.0};
-      lin += sign * p;
-      ang += sign * (r_yzx * p_zxy - r_zxy * p_yzx);
+      const d4 p = sign * load(P + 3 * k);
+      const d4 r = widen(&lever_[6 * k + 3 * side]);  // its fourth lane is not ours
+      const d4 r_yzx = __builtin_shufflevector(r, r, 1, 2, 0, 3);
+      const d4 p_yzx = __builtin_shufflevector(p, p, 1, 2, 0, 3);
+      lin += p;
+      ang_zxy += r * p_yzx - r_yzx * p;
     }
+    const d4 ang = __builtin_shufflevector(ang_zxy, ang_zxy, 1, 2, 0, 3);
     dv[u] = B.inv_mass[u] * Vec3(lin[0], lin[1], lin[2]);
     dw[u] = B.inv_inertia[u] * Vec3(ang[0], ang[1], ang[2]);
     if (add_free) {
@@ -543,7 +533,6 @@ CcpProblem::TrialSums& CcpProblem::TrialSums::operator+=(const TrialSums& o) {
   dnd += o.dnd;
   uphill += o.uphill;
   res_sum += o.res_sum;
-  res_max = std::max(res_max, o.res_max);
   return *this;
 }
 
@@ -554,14 +543,14 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
   const bool old = mo.cb != 0.0;
   auto pass = [&](std::size_t begin, std::size_t end, TrialSums& part) {
     TrialLanes sums;
-    for_blocks(begin, end, [&](std::size_t k0, auto count) {
+    for_blocks(begin, end, [&](std::size_t k0, auto count) __attribute__((always_inline)) {
       BlockRows blk(3 * k0, 3 * count);
       const double *px = blk.in(x, 0), *pgx = blk.in(gx, 1);
       const double *pold = old ? blk.in(x_old, 2) : px, *pgold = old ? blk.in(g_old, 3) : pgx;
       double* p1 = blk.out(x1, 4);
-      const Rows r = trial_block(px, pold, pgx, pgold, mo, step, load(mu_.data() + k0), p1, sums);
+      trial_block(px, pold, pgx, pgold, mo, step, load_frame(&frame_[k0 / kLanes * kFrameBlock]),
+                  p1, sums);
       blk.flush(x1, 4);
-      store_impulses(&frame_[k0 / kLanes * kFrameBlock], r, impulse_[k0].data());
     });
     part = {lane_sum(sums.dd), -lane_sum(sums.d_gy), lane_sum(sums.uphill)};
   };
@@ -576,16 +565,16 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
 
 void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_old, Momentum mo,
                                TrialSums& t) const {
-  scatter_bodies(x1, true, dv_, dw_);
+  scatter_bodies(x1.data(), x1, true, dv_, dw_);
   const double inv_s = diag_max_, s_res = 1.0 / inv_s;  // the residual's step
   const bool old = mo.cb != 0.0;
   const std::size_t nc = a_.size();
   auto pass = [&](std::size_t begin, std::size_t end, TrialSums& part) {
-    d4 d_g1 = {}, res2 = {}, resm = {};
-    for_blocks(begin, end, [&](std::size_t k0, auto count) {
+    d4 d_g1 = {}, res2 = {};
+    for_blocks(begin, end, [&](std::size_t k0, auto count) __attribute__((always_inline)) {
       BlockRows blk(3 * k0, 3 * count);
-      const Rows g = gather_block(&frame_[k0 / kLanes * kFrameBlock], &lever_[6 * k0], &a_[k0],
-                                  &b_[k0], count, dv_, dw_, &bias_[k0]);
+      const FrameLanes F = load_frame(&frame_[k0 / kLanes * kFrameBlock]);
+      const Lanes3 g = gather_block(F, &lever_[6 * k0], &a_[k0], &b_[k0], count, dv_, dw_, &bias_[k0]);
       double* pg = blk.out(g1, 3);
       store_rows(pg, g);
       blk.flush(g1, 3);
@@ -596,18 +585,17 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
         const d4 y = old ? mo.ca * load(px + j) - mo.cb * load(pold + j) : load(px + j);
         d_g1 += (load(p1 + j) - y) * load(pg + j);
       }
-      const Rows r1 = load_rows(p1);
-      Rows q = {r1.n - s_res * g.n, r1.t1 - s_res * g.t1, r1.t2 - s_res * g.t2};
-      project_cone(load(mu_.data() + k0), q);
-      for (const auto m : {&Rows::n, &Rows::t1, &Rows::t2}) {
-        const d4 res = (r1.*m - q.*m) * inv_s;
+      const Lanes3 r1 = load_rows(p1);
+      Lanes3 q;
+      for (int c = 0; c < 3; ++c) q.c[c] = r1.c[c] - s_res * g.c[c];
+      project_cone(F, q);
+      for (int c = 0; c < 3; ++c) {
+        const d4 res = (r1.c[c] - q.c[c]) * inv_s;
         res2 += res * res;
-        resm = vmax(resm, vabs(res));
       }
     });
     part.dnd = lane_sum(d_g1);
     part.res_sum = lane_sum(res2);
-    part.res_max = lane_max(resm);
   };
   t += reduce_chunks<TrialSums>(nc, pass);
   gather_rows(dv_, dw_, true, g1);
@@ -617,14 +605,65 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
     const double res = (x1[i] - std::clamp(x1[i] - s_res * g1[i], rows_[j].lo, rows_[j].hi)) * inv_s;
     t.dnd += (x1[i] - y) * g1[i];
     t.res_sum += res * res;
-    t.res_max = std::max(t.res_max, std::abs(res));
   }
 }
 
 void CcpProblem::world_impulses(ConstSpan x, std::vector<Vec3>& out) const {
   out.resize(a_.size());
-  for (std::size_t k = 0; k < a_.size(); ++k)
-    out[k] = normal(k) * x[3 * k] + tangent1(k) * x[3 * k + 1] + tangent2(k) * x[3 * k + 2];
+  for (std::size_t k = 0; k < a_.size(); ++k) {
+    const Frame F = frame(k);
+    out[k] = F.n * x[3 * k] + F.t1 * x[3 * k + 1] + F.t2 * x[3 * k + 2];
+  }
+}
+
+void CcpProblem::to_world(ConstSpan x, Span P) const {
+  const auto nc = std::ptrdiff_t(a_.size());
+#pragma omp parallel for schedule(static) if (nc > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < nc; ++s) {
+    const auto k = std::size_t(s);
+    const Frame F = frame(k);
+    const Vec3 w = F.n * x[3 * k] + F.t1 * x[3 * k + 1] + F.t2 * x[3 * k + 2];
+    std::copy_n(w.data(), 3, &P[3 * k]);
+  }
+  std::copy(x.begin() + 3 * nc, x.end(), P.begin() + 3 * nc);
+}
+
+void CcpProblem::to_local(ConstSpan P, Span x) const {
+  const auto nc = std::ptrdiff_t(a_.size());
+#pragma omp parallel for schedule(static) if (nc > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < nc; ++s) {
+    const auto k = std::size_t(s);
+    const Frame F = frame(k);
+    const Vec3 w(P[3 * k], P[3 * k + 1], P[3 * k + 2]);
+    x[3 * k] = F.n.dot(w);
+    x[3 * k + 1] = F.t1.dot(w);
+    x[3 * k + 2] = F.t2.dot(w);
+  }
+  std::copy(P.begin() + 3 * nc, P.end(), x.begin() + 3 * nc);
+}
+
+void CcpProblem::world_gradient(ConstSpan P, Span g) const {
+  scatter_bodies(P.data(), P, true, dv_, dw_);
+  const auto nc = std::ptrdiff_t(a_.size());
+#pragma omp parallel for schedule(static) if (nc > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < nc; ++s) {
+    const auto k = std::size_t(s);
+    const Vec3 rel = point_velocity(dv_, dw_, b_[k], lever_b(k)) -
+                     point_velocity(dv_, dw_, a_[k], lever_a(k)) + bias_[k] * normal(k);
+    std::copy_n(rel.data(), 3, &g[3 * k]);
+  }
+  gather_rows(dv_, dw_, true, g);
+}
+
+CcpProblem::Frame CcpProblem::frame(std::size_t k) const {
+  // Duff et al., "Building an Orthonormal Basis, Revisited", JCGT 6(1),
+  // 2017: branch-free, and no other vector than n goes in.
+  Frame F{normal(k), {}, {}};
+  const Vec3& n = F.n;
+  const double sign = n.z() < 0.0 ? -1.0 : 1.0, a = -1.0 / (sign + n.z()), b = n.x() * n.y() * a;
+  F.t1 = {1.0 + sign * n.x() * n.x() * a, sign * b, -sign * n.x()};
+  F.t2 = {b, sign + n.y() * n.y() * a, -n.y()};
+  return F;
 }
 
 void CcpProblem::warm_start(const std::vector<ContactKey>& keys,
@@ -640,9 +679,10 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys,
     from = it;
     if (it == prev_keys.end() || !(*it == keys[k])) continue;
     const Vec3& P = prev_impulse[std::size_t(it - prev_keys.begin())];
-    x[3 * k] = normal(k).dot(P);
-    x[3 * k + 1] = tangent1(k).dot(P);
-    x[3 * k + 2] = tangent2(k).dot(P);
+    const Frame F = frame(k);
+    x[3 * k] = F.n.dot(P);
+    x[3 * k + 1] = F.t1.dot(P);
+    x[3 * k + 2] = F.t2.dot(P);
   }
   const std::size_t base = 3 * a_.size();
   const auto prev_base = std::ptrdiff_t(prev_x.size()) - std::ptrdiff_t(rows_.size());
@@ -655,7 +695,8 @@ double CcpProblem::block_bound(std::size_t k) const {
   // Gershgorin bound on the largest eigenvalue of the contact's 3x3 block of
   // N: per body, m^-1 D D^T + C I^-1 C^T with D the rows (n, t1, t2) and C
   // their lever-arm rows r x d.
-  const Vec3 dir[3] = {normal(k), tangent1(k), tangent2(k)};
+  const Frame F = frame(k);
+  const Vec3 dir[3] = {F.n, F.t1, F.t2};
   Mat3 D;
   for (int i = 0; i < 3; ++i) D.row(i) = dir[i].transpose();
   Mat3 block = Mat3::Zero();
@@ -688,13 +729,14 @@ SolveStats CcpProblem::solve_pgs(Span x, const SolverSettings& s, SolverWorkspac
     for (std::size_t k = 0; k < nc; ++k) {
       const double step = steps[k];
       if (step <= 0.0) continue;
-      const Vec3 ra = lever_a(k), rb = lever_b(k), n = normal(k), t1 = tangent1(k), t2 = tangent2(k);
+      const Vec3 ra = lever_a(k), rb = lever_b(k);
+      const auto [n, t1, t2] = frame(k);
       const Vec3 rel = point_velocity(v, w, b_[k], rb) - point_velocity(v, w, a_[k], ra);
       const std::size_t i = 3 * k;
       double gn = x[i] - step * (n.dot(rel) + bias_[k]);
       double g1 = x[i + 1] - step * t1.dot(rel);
       double g2 = x[i + 2] - step * t2.dot(rel);
-      project_cone(mu_[k], gn, g1, g2);
+      project_cone(friction(k), gn, g1, g2);
       const Vec3 dP = n * (gn - x[i]) + t1 * (g1 - x[i + 1]) + t2 * (g2 - x[i + 2]);
       x[i] = gn;
       x[i + 1] = g1;
@@ -716,7 +758,7 @@ SolveStats CcpProblem::solve_pgs(Span x, const SolverSettings& s, SolverWorkspac
     }
     stats.iterations = it + 1;
     gradient(x, g);
-    residual(x, g, stats.residual, stats.residual_max);
+    stats.residual = residual(x, g);
     if (stats.residual <= s.tolerance) {
       stats.converged = true;
       break;
@@ -789,11 +831,12 @@ std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std:
     Vec3 dv = Vec3::Zero(), dw = Vec3::Zero();
     for (std::uint32_t e = first; e < last && eligible; ++e) {
       const std::size_t k = adj_.entry[e] >> 1, i = 3 * k;
-      const double gn = x[i], gt2 = x[i + 1] * x[i + 1] + x[i + 2] * x[i + 2], mu = mu_[k];
+      const double gn = x[i], gt2 = x[i + 1] * x[i + 1] + x[i + 2] * x[i + 2], mu = friction(k);
       eligible = (adj_.entry[e] & 1) && B.inv_mass[std::size_t(a_[k])] == 0.0 &&
                  (gn <= 0.0 || (mu > 0.0 && gt2 >= mu * mu * gn * gn * (1.0 - 1e-6)));
       if (!eligible || gn <= 0.0) continue;
-      const Vec3 P = normal(k) * gn + tangent1(k) * x[i + 1] + tangent2(k) * x[i + 2];
+      const Frame F = frame(k);
+      const Vec3 P = F.n * gn + F.t1 * x[i + 1] + F.t2 * x[i + 2];
       dv -= B.inv_mass[b] * P;
       dw -= B.inv_inertia[b] * lever_b(k).cross(P);
       lifting = lifting || row_of(k, v, w) > tolerance;

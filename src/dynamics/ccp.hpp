@@ -13,21 +13,23 @@
 //
 // APGD, the default, runs on a kernel of its own (apgd_step, apgd_gradient):
 // two passes over the contacts per iteration instead of five, four contacts
-// to a SIMD vector.
+// to a SIMD vector, on world rows (a contact's impulse as a world vector;
+// ccp.cpp), so it needs only the normal of a contact's frame.
 //
-// The contact frames and lever arms are stored in float: the kernel streams
-// them every iteration and is bound by memory bandwidth. They are relative
-// quantities (unit vectors, lever arms of a few mm, at most the drum radius),
-// so float's 6e-8 relative error moves a contact point by nanometres; scatter
-// and gather read the same rounded D, so N stays exactly symmetric. The
-// build option CES_DOUBLE_FRAMES stores them in double, to measure what
-// float costs (docs/accuracy.md, section 2).
+// The normals, friction coefficients and lever arms are stored in float: the kernel streams them
+// every iteration and is bound by memory. They are relative quantities (unit
+// vectors, lever arms of a few mm, at most the drum radius), so float's
+// 6e-8 relative error moves a contact point by nanometres; scatter and
+// gather read the same rounded numbers, so N stays exactly symmetric. The
+// build option CES_DOUBLE_FRAMES stores them in double, to measure
+// what float costs (docs/accuracy.md, section 2).
 #pragma once
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
+#include <new>
 #include <span>
 #include <vector>
 
@@ -47,6 +49,21 @@ using FrameScalar = double;
 #else
 using FrameScalar = float;
 #endif
+
+// Storage on cache-line boundaries: a 64-byte block of the kernel is then
+// one line, and a block of rows may take streaming stores.
+template <class T>
+struct CacheAligned {
+  using value_type = T;
+  CacheAligned() = default;
+  template <class U>
+  CacheAligned(const CacheAligned<U>&) {}
+  T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t(64))); }
+  void deallocate(T* p, std::size_t) { ::operator delete(p, std::align_val_t(64)); }
+  bool operator==(const CacheAligned&) const { return true; }
+};
+template <class T>
+using AlignedVector = std::vector<T, CacheAligned<T>>;
 
 using Span = std::span<double>;
 using ConstSpan = std::span<const double>;
@@ -75,8 +92,7 @@ struct BilateralRow {
 
 struct SolveStats {
   int iterations = 0;
-  double residual = 0.0;      // RMS over rows of the projected-gradient residual (m/s)
-  double residual_max = 0.0;  // its largest row (m/s)
+  double residual = 0.0;  // RMS over rows of the projected-gradient residual (m/s)
   bool converged = false;
 };
 
@@ -86,9 +102,11 @@ struct SolveStats {
 struct SolverWorkspace {
   std::array<std::vector<double>, 8> row;  // vectors over the CCP's rows
   std::vector<Vec3> v, w;                  // projected Gauss-Seidel's running velocities
+  // m rows, and a spare past them: the APGD kernel loads a contact's three
+  // impulse rows as a four-number vector.
   Span take(std::size_t i, std::size_t m) {
-    row[i].resize(m);
-    return Span(row[i]);
+    row[i].resize(m + 1);
+    return Span(row[i].data(), m);
   }
 };
 
@@ -108,8 +126,9 @@ class CcpProblem {
   void project(Span x) const;
   // out = Π(y - step g), row by row: one pass, no temporaries.
   void projected_step(ConstSpan y, ConstSpan g, double step, Span out) const;
-  // Projected-gradient residual (x - Π(x - s g)) / s, s = 1 / max diag N.
-  void residual(ConstSpan x, ConstSpan g, double& rms, double& max) const;
+  // Projected-gradient residual (x - Π(x - s g)) / s, s = 1 / max diag N:
+  // its RMS over the rows.
+  double residual(ConstSpan x, ConstSpan g) const;
   // Upper bound on the largest eigenvalue of N (Gershgorin-like, cheap).
   double diagonal_max() const { return diag_max_; }
 
@@ -179,8 +198,19 @@ class CcpProblem {
   std::size_t release_sliding_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
                                     double tolerance) const;
 
+  // APGD runs on world rows (ccp.cpp, "The APGD kernel"): a contact's
+  // three rows are its impulse as a world vector, n x_n + t1 x_t1 + t2 x_t2,
+  // and its gradient J v + b n; bilateral rows as they are. The frame is
+  // orthonormal, so norms, dot products and the residual are the same.
+  // to_world and to_local change x between the two.
+  void to_world(ConstSpan x, Span P) const;
+  void to_local(ConstSpan P, Span x) const;
+  // g = N P + r in world rows. P has a spare past its rows (SolverWorkspace).
+  void world_gradient(ConstSpan P, Span g) const;
+
   // APGD's iteration in two streaming passes over the contacts (and one
-  // over the bodies), four contacts to a SIMD vector (solve_apgd; ccp.cpp).
+  // over the bodies), four contacts to a SIMD vector (solve_apgd), on world
+  // rows; x, x1 have a spare past their rows (SolverWorkspace).
   // The extrapolated point y = ca x - cb x_old and its gradient gy = ca gx -
   // cb g_old are made where they are used and never stored (cb = 0: y = x,
   // gy = gx, and x_old, g_old are not read): storing them cost more memory
@@ -192,12 +222,12 @@ class CcpProblem {
   // reduce() adds them: dd = |d|^2 and dnd = d.(g1 - gy) with d = x1 - y,
   // uphill = gy.(x1 - x), and the residual's.
   struct TrialSums {
-    double dd = 0, dnd = 0, uphill = 0, res_sum = 0, res_max = 0;
+    double dd = 0, dnd = 0, uphill = 0, res_sum = 0;
     TrialSums& operator+=(const TrialSums& o);
   };
-  // The first: x1 = Π(y - step gy), the contacts' world impulses for the
-  // second pass, and the sums but d.g1 and the residual's. x1 must not be
-  // x or x_old (a backtracking step makes y again).
+  // The first: x1 = Π(y - step gy), and the sums but d.g1 and the
+  // residual's. x1 must not be x or x_old (a backtracking step makes y
+  // again).
   TrialSums apgd_step(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx, ConstSpan g_old,
                       Momentum momentum, double step) const;
   // The second: g1 = N x1 + r at apgd_step's x1; adds d.g1 and the residual
@@ -217,10 +247,11 @@ class CcpProblem {
   Part reduce(ContactFn acc, RowFn row) const;
 
  private:
-  // dv = M^-1 J^T x (+ v_free); y = J v (+ b). scatter_bodies takes D x
-  // from impulse_ (made by scatter or apgd_step) and the bilateral rows from x.
+  // dv = M^-1 J^T x (+ v_free); y = J v (+ b). scatter_bodies takes the
+  // contacts' world impulses from P (three numbers each, and a spare past
+  // them) and the bilateral rows from x.
   void scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
-  void scatter_bodies(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
+  void scatter_bodies(const double* P, ConstSpan x, bool add_free, std::vector<Vec3>& dv,
                       std::vector<Vec3>& dw) const;
   void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, Span y) const;
   void gather_rows(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias,
@@ -232,36 +263,45 @@ class CcpProblem {
   const SolverBodies* bodies_ = nullptr;
   // Contacts, structure of arrays.
   std::vector<std::int32_t> a_, b_;
-  // Frames in blocks of kLanes contacts: component c (0-2 the normal, 3-5
-  // and 6-8 the tangents) of contact k at
+  // Normal and friction in blocks of kLanes contacts: component c (0-2 the
+  // normal, 3 the friction coefficient) of contact k at
   // frame_[k / kLanes * kFrameBlock + c * kLanes + k % kLanes], so the
-  // kernel loads one component of four contacts at once.
-  static constexpr std::size_t kLanes = 4, kFrameBlock = 9 * kLanes;
-  std::vector<FrameScalar> frame_;
+  // kernel loads one component of four contacts at once, and a block of
+  // float is one 64-byte cache line. The tangents are not stored: the kernel
+  // needs none (world rows), the scalar code makes them (frame()).
+  static constexpr std::size_t kLanes = 4, kFrameBlock = 4 * kLanes;
+  AlignedVector<FrameScalar> frame_;
   // Lever arms contact by contact, a's then b's: lever_[6 k + 3 side + c].
   // The bodies' pass reads one contact's arm of one side, as one vector;
   // the gather reads a block's, and transposes them. One spare at the end:
   // a vector load of the last arm reads a fourth number it does not use.
   std::vector<FrameScalar> lever_;
-  Vec3 frame(std::size_t k, std::size_t part) const {
-    const FrameScalar* f = &frame_[k / kLanes * kFrameBlock + 3 * part * kLanes + k % kLanes];
+  const FrameScalar* frame_at(std::size_t k) const {
+    return &frame_[k / kLanes * kFrameBlock + k % kLanes];
+  }
+  Vec3 normal(std::size_t k) const {
+    const FrameScalar* f = frame_at(k);
     return {double(f[0]), double(f[kLanes]), double(f[2 * kLanes])};
   }
-  Vec3 normal(std::size_t k) const { return frame(k, 0); }
-  Vec3 tangent1(std::size_t k) const { return frame(k, 1); }
-  Vec3 tangent2(std::size_t k) const { return frame(k, 2); }
+  double friction(std::size_t k) const { return double(frame_at(k)[3 * kLanes]); }
+  // The contact's frame: the stored normal and tangents made from it.
+  struct Frame {
+    Vec3 n, t1, t2;
+  };
+  Frame frame(std::size_t k) const;
   Vec3 lever(std::size_t k, std::size_t side) const {
     const FrameScalar* r = &lever_[6 * k + 3 * side];
     return {double(r[0]), double(r[1]), double(r[2])};
   }
   Vec3 lever_a(std::size_t k) const { return lever(k, 0); }
   Vec3 lever_b(std::size_t k) const { return lever(k, 1); }
-  std::vector<double> mu_, bias_;
+  std::vector<double> bias_;
   std::vector<BilateralRow> rows_;
   std::vector<double> row_diag_;
   ContactAdjacency adj_;  // bodies with finite mass
   double diag_max_ = 1.0;
-  mutable std::vector<Vec3> dv_, dw_, impulse_;
+  mutable std::vector<Vec3> dv_, dw_;
+  mutable std::vector<double> impulse_;
 };
 
 SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);
@@ -320,7 +360,7 @@ Part reduce_chunks(std::size_t n, ChunkFn fn) {
 template <class Part, class ContactFn, class RowFn>
 Part CcpProblem::reduce(ContactFn acc, RowFn row) const {
   auto contacts = [&](std::size_t begin, std::size_t end, Part& part) {
-    for (std::size_t k = begin; k < end; ++k) acc(std::ptrdiff_t(k), mu_[k], part);
+    for (std::size_t k = begin; k < end; ++k) acc(std::ptrdiff_t(k), friction(k), part);
   };
   Part total = reduce_chunks<Part>(a_.size(), contacts);
   const auto nc = std::ptrdiff_t(a_.size());

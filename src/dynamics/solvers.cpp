@@ -21,14 +21,10 @@ double dot(ConstSpan a, ConstSpan b) {
 // The best iterate's record. Until a finite residual is met the stats say
 // NaN: a solve whose every residual was NaN or inf must not report 0.
 struct Best {
-  SolveStats stats{0, std::numeric_limits<double>::quiet_NaN(),
-                   std::numeric_limits<double>::quiet_NaN(), false};
+  SolveStats stats{0, std::numeric_limits<double>::quiet_NaN(), false};
   double residual = std::numeric_limits<double>::infinity();
   bool improves(double rms) const { return rms < residual; }  // false for NaN
-  void take(double rms, double max) {
-    residual = stats.residual = rms;
-    stats.residual_max = max;
-  }
+  void take(double rms) { residual = stats.residual = rms; }
 };
 
 }  // namespace
@@ -41,10 +37,12 @@ struct Best {
 // and f is quadratic, so the sufficient-decrease test
 //   f(x1) <= f(y) + g(y).d + L/2 |d|^2,  d = x1 - y,
 // is exactly d.(g(x1) - g(y)) <= L |d|^2, which needs no objective values.
-// The sums of an iteration come from the kernel's two passes over the rows.
+// The sums of an iteration come from the kernel's two passes over the rows,
+// which run on world rows (CcpProblem::to_world): x is changed to them here
+// and back at the end.
 SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, SolverWorkspace& ws) {
   const std::size_t m = p.row_count();
-  if (m == 0) return {0, 0.0, 0.0, true};
+  if (m == 0) return {0, 0.0, true};
   // Four buffers for iterates: x, the one before it (x_old), the best so
   // far (kept where it lies instead of copied; it may be x or x_old) and the
   // trial x1, which goes where it overwrites none of them (a backtracking
@@ -54,10 +52,10 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
   std::array<Span, 3> gs = {ws.take(4, m), ws.take(5, m), ws.take(6, m)};
   std::size_t ix = 0, iold = 1, ibest = 2, gx = 0, gold = 1, g1 = 2;
   const double inv_s = p.diagonal_max();
-  copy(out, xs[ix]);
-  p.gradient(xs[ix], gs[gx]);
+  p.to_world(out, xs[ix]);
+  p.world_gradient(xs[ix], gs[gx]);
   copy(xs[ix], xs[ibest]);  // the best until an iterate improves on it
-  // Initial Lipschitz estimate: |N u| / |u| along u = (1, ..., 1).
+  // Initial Lipschitz estimate: |N u| / |u| along u = (1, ..., 1) (contact rows).
   std::fill(xs[3].begin(), xs[3].end(), 1.0);
   p.multiply(xs[3], gs[g1]);
   double L = std::max(std::sqrt(dot(gs[g1], gs[g1]) / double(m)), 1e-12 * inv_s);
@@ -79,14 +77,14 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
     }
     const double rms = std::sqrt(t.res_sum / double(m));
     if (rms <= s.tolerance) {
-      record.take(rms, t.res_max);
+      record.take(rms);
       record.stats.converged = true;
       record.stats.iterations = it + 1;
-      copy(xs[i1], out);
+      p.to_local(xs[i1], out);
       return record.stats;
     }
     if (record.improves(rms)) {
-      record.take(rms, t.res_max);
+      record.take(rms);
       ibest = i1;
     }
     const double theta1 = 0.5 * (-theta * theta + theta * std::sqrt(theta * theta + 4.0));
@@ -100,7 +98,7 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
     L *= 0.9;
   }
   record.stats.iterations = it;
-  copy(xs[ibest], out);
+  p.to_local(xs[ibest], out);
   return record.stats;
 }
 
@@ -110,7 +108,7 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
 // on gd and dNd: one product N d per iteration.
 SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws) {
   const std::size_t m = p.row_count();
-  if (m == 0) return {0, 0.0, 0.0, true};
+  if (m == 0) return {0, 0.0, true};
   constexpr int kMemory = 10;
   constexpr double kSufficient = 1e-4;
   const double alpha_min = 1e-10 / p.diagonal_max(), alpha_max = 1e10 / p.diagonal_max();
@@ -128,10 +126,9 @@ SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, Span x, Solve
   Best record;
   int it = 0;
   for (; it <= s.max_iterations; ++it) {
-    double rms, max;
-    p.residual(x, g, rms, max);
+    const double rms = p.residual(x, g);
     if (record.improves(rms)) {
-      record.take(rms, max);
+      record.take(rms);
       copy(x, best);
     }
     if (rms <= s.tolerance) {

@@ -301,7 +301,7 @@ void World::make_safe(StepStats& stats) {
   }
   if (changed) {
     problem_.gradient_at(v, w, g);
-    problem_.residual(gamma_, g, stats.solver.residual, stats.solver.residual_max);
+    stats.solver.residual = problem_.residual(gamma_, g);
   }
 }
 
