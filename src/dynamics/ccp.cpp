@@ -100,6 +100,15 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     diag_max = std::max(diag_max, row_mass(B, a_[k], nw, lever_a(k).cross(nw)) +
                                       row_mass(B, b_[k], nw, lever_b(k).cross(nw)));
   }
+  inverse_mass_.resize(kMassStride * B.inv_mass.size());
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(B.inv_mass.size()) > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(B.inv_mass.size()); ++s) {
+    const auto i = std::size_t(s);
+    const Mat3& I = B.inv_inertia[i];
+    float* m = &inverse_mass_[kMassStride * i];
+    const double upper[] = {I(0, 0), I(0, 1), I(0, 2), I(1, 1), I(1, 2), I(2, 2), B.inv_mass[i], 0.0};
+    for (std::size_t c = 0; c < kMassStride; ++c) m[c] = float(upper[c]);
+  }
   row_diag_.resize(rows_.size());
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const BilateralRow& r = rows_[j];
@@ -518,8 +527,11 @@ void CcpProblem::scatter_bodies(const double* P, ConstSpan x, bool add_free,
       ang_zxy += r * p_yzx - r_yzx * p;
     }
     const d4 ang = __builtin_shufflevector(ang_zxy, ang_zxy, 1, 2, 0, 3);
-    dv[u] = B.inv_mass[u] * Vec3(lin[0], lin[1], lin[2]);
-    dw[u] = B.inv_inertia[u] * Vec3(ang[0], ang[1], ang[2]);
+    const float* m = &inverse_mass_[kMassStride * u];
+    const double i00 = m[0], i01 = m[1], i02 = m[2], i11 = m[3], i12 = m[4], i22 = m[5], im = m[6];
+    dv[u] = im * Vec3(lin[0], lin[1], lin[2]);
+    dw[u] = Vec3(i00 * ang[0] + i01 * ang[1] + i02 * ang[2], i01 * ang[0] + i11 * ang[1] + i12 * ang[2],
+                 i02 * ang[0] + i12 * ang[1] + i22 * ang[2]);
     if (add_free) {
       dv[u] += B.v_free[u];
       dw[u] += B.w_free[u];

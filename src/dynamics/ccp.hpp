@@ -16,12 +16,13 @@
 // to a SIMD vector, on world rows (a contact's impulse as a world vector;
 // ccp.cpp), so it needs only the normal of a contact's frame.
 //
-// The normals, friction coefficients and lever arms are stored in float: the kernel streams them
+// The normals, friction coefficients and lever arms, and the bodies'
+// inverse masses and inertias, are stored in float: the kernel streams them
 // every iteration and is bound by memory. They are relative quantities (unit
 // vectors, lever arms of a few mm, at most the drum radius), so float's
 // 6e-8 relative error moves a contact point by nanometres; scatter and
 // gather read the same rounded numbers, so N stays exactly symmetric. The
-// build option CES_DOUBLE_FRAMES stores them in double, to measure
+// build option CES_DOUBLE_FRAMES stores the contacts' in double, to measure
 // what float costs (docs/accuracy.md, section 2).
 #pragma once
 #include <Eigen/Core>
@@ -296,6 +297,13 @@ class CcpProblem {
   Vec3 lever_a(std::size_t k) const { return lever(k, 0); }
   Vec3 lever_b(std::size_t k) const { return lever(k, 1); }
   std::vector<double> bias_;
+  // Bodies as the bodies' pass reads them, one 32-byte record each: the
+  // inverse inertia's upper triangle (00 01 02 11 12 22), the inverse mass,
+  // a spare; in float, a third of the 80 bytes of SolverBodies' double Mat3
+  // and mass, which were the pass's largest stream. N is made from them
+  // alone, so it stays symmetric and positive.
+  static constexpr std::size_t kMassStride = 8;
+  AlignedVector<float> inverse_mass_;
   std::vector<BilateralRow> rows_;
   std::vector<double> row_diag_;
   ContactAdjacency adj_;  // bodies with finite mass
