@@ -698,18 +698,24 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys,
                             const std::vector<Vec3>& prev_impulse, ConstSpan prev_x, Span x) const {
   std::fill(x.begin(), x.end(), 0.0);
   // Both lists come sorted when the contacts are (the usual case): then a
-  // merge, else a binary search per contact.
-  auto from = prev_keys.begin();
-  for (std::size_t k = 0; k < keys.size(); ++k) {
-    if (from == prev_keys.end() || keys[k] < *from) from = prev_keys.begin();
-    const auto it = std::lower_bound(from, prev_keys.end(), keys[k]);
-    from = it;
-    if (it == prev_keys.end() || !(*it == keys[k])) continue;
-    const Vec3& P = prev_impulse[std::size_t(it - prev_keys.begin())];
-    const Frame F = frame(k);
-    x[3 * k] = F.n.dot(P);
-    x[3 * k + 1] = F.t1.dot(P);
-    x[3 * k + 2] = F.t2.dot(P);
+  // merge, else a binary search per contact. In fixed chunks, each starting
+  // with a search, in parallel: a contact's match does not depend on them.
+  const std::size_t nc = keys.size(), chunk = std::size_t(kReduceChunk);
+  const auto chunks = std::ptrdiff_t((nc + chunk - 1) / chunk);
+#pragma omp parallel for schedule(static) if (chunks > 1)
+  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
+    auto from = prev_keys.begin();
+    for (std::size_t k = std::size_t(ch) * chunk; k < std::min(nc, std::size_t(ch + 1) * chunk); ++k) {
+      if (from == prev_keys.end() || keys[k] < *from) from = prev_keys.begin();
+      const auto it = std::lower_bound(from, prev_keys.end(), keys[k]);
+      from = it;
+      if (it == prev_keys.end() || !(*it == keys[k])) continue;
+      const Vec3& P = prev_impulse[std::size_t(it - prev_keys.begin())];
+      const Frame F = frame(k);
+      x[3 * k] = F.n.dot(P);
+      x[3 * k + 1] = F.t1.dot(P);
+      x[3 * k + 2] = F.t2.dot(P);
+    }
   }
   const std::size_t base = 3 * a_.size();
   const auto prev_base = std::ptrdiff_t(prev_x.size()) - std::ptrdiff_t(rows_.size());
