@@ -293,18 +293,26 @@ double lane_sum(d4 a) { return (a[0] + a[1]) + (a[2] + a[3]); }
 struct Lanes3 {
   d4 c[3];
 };
-// 12 doubles [x0 y0 z0 x1 y1 z1 ...] <-> the lanes.
+// 12 doubles [x0 y0 z0 x1 y1 z1 ...], as three vectors a, <-> the lanes.
+[[gnu::always_inline]] inline Lanes3 lanes_of(const d4 a[3]) {
+  return {{__builtin_shufflevector(__builtin_shufflevector(a[0], a[1], 0, 3, 6, 7), a[2], 0, 1, 2, 5),
+           __builtin_shufflevector(__builtin_shufflevector(a[0], a[1], 1, 4, 7, 7), a[2], 0, 1, 2, 6),
+           __builtin_shufflevector(__builtin_shufflevector(a[0], a[1], 2, 5, 5, 5), a[2], 0, 1, 4, 7)}};
+}
+[[gnu::always_inline]] inline void rows_of(const Lanes3& r, d4 a[3]) {
+  const d4 &x = r.c[0], &y = r.c[1], &z = r.c[2];
+  a[0] = __builtin_shufflevector(__builtin_shufflevector(x, y, 0, 4, 1, 1), z, 0, 1, 4, 2);
+  a[1] = __builtin_shufflevector(__builtin_shufflevector(y, z, 1, 5, 2, 2), x, 0, 1, 6, 2);
+  a[2] = __builtin_shufflevector(__builtin_shufflevector(z, x, 2, 7, 3, 3), y, 0, 1, 7, 2);
+}
 [[gnu::always_inline]] inline Lanes3 load_rows(const double* p) {
-  const d4 a0 = load(p), a1 = load(p + 4), a2 = load(p + 8);
-  return {{__builtin_shufflevector(__builtin_shufflevector(a0, a1, 0, 3, 6, 7), a2, 0, 1, 2, 5),
-           __builtin_shufflevector(__builtin_shufflevector(a0, a1, 1, 4, 7, 7), a2, 0, 1, 2, 6),
-           __builtin_shufflevector(__builtin_shufflevector(a0, a1, 2, 5, 5, 5), a2, 0, 1, 4, 7)}};
+  const d4 a[3] = {load(p), load(p + 4), load(p + 8)};
+  return lanes_of(a);
 }
 [[gnu::always_inline]] inline void store_rows(double* p, const Lanes3& r) {
-  const d4 &x = r.c[0], &y = r.c[1], &z = r.c[2];
-  store(p, __builtin_shufflevector(__builtin_shufflevector(x, y, 0, 4, 1, 1), z, 0, 1, 4, 2));
-  store(p + 4, __builtin_shufflevector(__builtin_shufflevector(y, z, 1, 5, 2, 2), x, 0, 1, 6, 2));
-  store(p + 8, __builtin_shufflevector(__builtin_shufflevector(z, x, 2, 7, 3, 3), y, 0, 1, 7, 2));
+  d4 a[3];
+  rows_of(r, a);
+  for (std::size_t j = 0; j < 3; ++j) store(p + 4 * j, a[j]);
 }
 
 using mask4 = decltype(d4{} < d4{});
@@ -398,7 +406,8 @@ struct TrialLanes {
                                                const double* pgx, const double* pgold,
                                                CcpProblem::Momentum mo, double step,
                                                const FrameLanes& F, double* p1, TrialLanes& sums) {
-  d4 y[3], gy[3];
+  // In registers throughout: the rows transposed to lanes and back.
+  d4 y[3], gy[3], z[3];
   for (std::size_t j = 0; j < 3; ++j) {
     y[j] = load(px + 4 * j);
     gy[j] = load(pgx + 4 * j);
@@ -406,13 +415,15 @@ struct TrialLanes {
       y[j] = mo.ca * y[j] - mo.cb * load(pold + 4 * j);
       gy[j] = mo.ca * gy[j] - mo.cb * load(pgold + 4 * j);
     }
-    store(p1 + 4 * j, y[j] - step * gy[j]);
+    z[j] = y[j] - step * gy[j];
   }
-  Lanes3 r = load_rows(p1);
+  Lanes3 r = lanes_of(z);
   project_cone(F, r);
-  store_rows(p1, r);
+  d4 x1[3];
+  rows_of(r, x1);
   for (std::size_t j = 0; j < 3; ++j) {
-    const d4 v1 = load(p1 + 4 * j), d = v1 - y[j];
+    store(p1 + 4 * j, x1[j]);
+    const d4 v1 = x1[j], d = v1 - y[j];
     sums.dd += d * d;
     sums.d_gy += d * gy[j];
     sums.uphill += gy[j] * (v1 - load(px + 4 * j));
@@ -542,11 +553,16 @@ void CcpProblem::scatter_bodies(const double* P, ConstSpan x, bool add_free,
       ang_zxy += r * p_yzx - r_yzx * p;
     }
     const d4 ang = __builtin_shufflevector(ang_zxy, ang_zxy, 1, 2, 0, 3);
-    const float* m = &inverse_mass_[kMassStride * u];
-    const double i00 = m[0], i01 = m[1], i02 = m[2], i11 = m[3], i12 = m[4], i22 = m[5], im = m[6];
-    dv[u] = im * Vec3(lin[0], lin[1], lin[2]);
-    dw[u] = Vec3(i00 * ang[0] + i01 * ang[1] + i02 * ang[2], i01 * ang[0] + i11 * ang[1] + i12 * ang[2],
-                 i02 * ang[0] + i12 * ang[1] + i22 * ang[2]);
+    // The record's [00 01 02 11] and [12 22 m -]: the inverse inertia's
+    // columns are [00 01 02], [01 11 12], [02 12 22].
+    const d4 lo = widen(&inverse_mass_[kMassStride * u]), hi = widen(&inverse_mass_[kMassStride * u + 4]);
+    const d4 col1 = __builtin_shufflevector(lo, hi, 1, 3, 4, 4), col2 = __builtin_shufflevector(lo, hi, 2, 4, 5, 5);
+    const d4 mass = __builtin_shufflevector(hi, hi, 2, 2, 2, 2);
+    const d4 a0 = __builtin_shufflevector(ang, ang, 0, 0, 0, 0), a1 = __builtin_shufflevector(ang, ang, 1, 1, 1, 1),
+             a2 = __builtin_shufflevector(ang, ang, 2, 2, 2, 2);
+    const d4 lin_v = mass * lin, ang_v = lo * a0 + col1 * a1 + col2 * a2;
+    dv[u] = Vec3(lin_v[0], lin_v[1], lin_v[2]);
+    dw[u] = Vec3(ang_v[0], ang_v[1], ang_v[2]);
     if (add_free) {
       dv[u] += B.v_free[u];
       dw[u] += B.w_free[u];
