@@ -71,9 +71,9 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   frame_.assign(padded / kLanes * kFrameBlock, 0.0f);
   lever_.assign(6 * padded + 1, 0.0f);
   bias_.assign(padded, 0.0);
-  // World impulses for scatter_bodies, and a spare: it loads each as a
-  // four-number vector.
-  impulse_.resize(3 * nc + 1);
+  // World rows for scatter_bodies, and a spare: it loads each contact's
+  // impulse as a four-number vector.
+  impulse_.resize(3 * nc + rows_.size() + 1);
   double diag_max = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : diag_max) if (std::ptrdiff_t(nc) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(nc); ++s) {
@@ -125,14 +125,7 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
 
 void CcpProblem::scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
                          std::vector<Vec3>& dw) const {
-  const auto nc = std::ptrdiff_t(a_.size());
-#pragma omp parallel for schedule(static) if (nc > kParallelMin)
-  for (std::ptrdiff_t k = 0; k < nc; ++k) {
-    const auto u = std::size_t(k);
-    const Frame F = frame(u);
-    const Vec3 P = F.n * x[3 * u] + F.t1 * x[3 * u + 1] + F.t2 * x[3 * u + 2];
-    std::copy_n(P.data(), 3, &impulse_[3 * u]);
-  }
+  to_world(x, Span(impulse_.data(), x.size()));
   scatter_bodies(impulse_.data(), x, add_free, dv, dw);
 }
 
@@ -653,10 +646,7 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
 
 void CcpProblem::world_impulses(ConstSpan x, std::vector<Vec3>& out) const {
   out.resize(a_.size());
-  for (std::size_t k = 0; k < a_.size(); ++k) {
-    const Frame F = frame(k);
-    out[k] = F.n * x[3 * k] + F.t1 * x[3 * k + 1] + F.t2 * x[3 * k + 2];
-  }
+  for (std::size_t k = 0; k < a_.size(); ++k) out[k] = world_impulse(k, x);
 }
 
 void CcpProblem::to_world(ConstSpan x, Span P) const {
@@ -664,8 +654,7 @@ void CcpProblem::to_world(ConstSpan x, Span P) const {
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t s = 0; s < nc; ++s) {
     const auto k = std::size_t(s);
-    const Frame F = frame(k);
-    const Vec3 w = F.n * x[3 * k] + F.t1 * x[3 * k + 1] + F.t2 * x[3 * k + 2];
+    const Vec3 w = world_impulse(k, x);
     std::copy_n(w.data(), 3, &P[3 * k]);
   }
   std::copy(x.begin() + 3 * nc, x.end(), P.begin() + 3 * nc);
@@ -696,6 +685,11 @@ void CcpProblem::world_gradient(ConstSpan P, Span g) const {
     std::copy_n(rel.data(), 3, &g[3 * k]);
   }
   gather_rows(dv_, dw_, true, g);
+}
+
+Vec3 CcpProblem::world_impulse(std::size_t k, ConstSpan x) const {
+  const Frame F = frame(k);
+  return F.n * x[3 * k] + F.t1 * x[3 * k + 1] + F.t2 * x[3 * k + 2];
 }
 
 CcpProblem::Frame CcpProblem::frame(std::size_t k) const {
@@ -884,8 +878,7 @@ std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std:
       eligible = (adj_.entry[e] & 1) && B.inv_mass[std::size_t(a_[k])] == 0.0 &&
                  (gn <= 0.0 || (mu > 0.0 && gt2 >= mu * mu * gn * gn * (1.0 - 1e-6)));
       if (!eligible || gn <= 0.0) continue;
-      const Frame F = frame(k);
-      const Vec3 P = F.n * gn + F.t1 * x[i + 1] + F.t2 * x[i + 2];
+      const Vec3 P = world_impulse(k, x);
       dv -= B.inv_mass[b] * P;
       dw -= B.inv_inertia[b] * lever_b(k).cross(P);
       lifting = lifting || row_of(k, v, w) > tolerance;

@@ -290,6 +290,8 @@ class CcpProblem {
     Vec3 n, t1, t2;
   };
   Frame frame(std::size_t k) const;
+  // Contact k's rows of x (its frame's) as a world vector.
+  Vec3 world_impulse(std::size_t k, ConstSpan x) const;
   Vec3 lever(std::size_t k, std::size_t side) const {
     const FrameScalar* r = &lever_[6 * k + 3 * side];
     return {double(r[0]), double(r[1]), double(r[2])};
