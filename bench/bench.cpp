@@ -88,7 +88,8 @@ class Beds {
     return b;
   }
   static BedRun median(std::vector<BedRun> runs) {
-    std::sort(runs.begin(), runs.end(), [](const BedRun& a, const BedRun& b) { return a.wall < b.wall; });
+    std::sort(runs.begin(), runs.end(),
+              [](const BedRun& a, const BedRun& b) { return a.wall < b.wall; });
     return runs[runs.size() / 2];
   }
   double work_;

@@ -622,7 +622,9 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   Contacts c;
   for (int k = 0; k < 13; ++k) {
     const int a = k % 3, b = k % 4 == 3 ? 3 : (a + 1 + k % 2) % 3;
-    const Vec3 n = k == 11 ? Vec3(0, 0, -1) : k == 12 ? Vec3(1e-5, 0, 1).normalized() : vec().normalized();
+    const Vec3 n = k == 11   ? Vec3(0, 0, -1)
+                   : k == 12 ? Vec3(1e-5, 0, 1).normalized()
+                             : vec().normalized();
     c.push(a, b, n, 0.01 * vec(), 1e-4 * uniform(), 0.001, k % 5 == 0 ? 0.0 : 0.5 + 0.4 * uniform(),
            0.0, ContactKey{});
   }
@@ -719,7 +721,8 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   expect_rows_near(x1, plain_step(x, zero, step));
   int kept = 0, cleared = 0;
   for (std::size_t k = 0; 3 * k < m - 1; ++k) {
-    const bool same = x1[3 * k] == x[3 * k] && x1[3 * k + 1] == x[3 * k + 1] && x1[3 * k + 2] == x[3 * k + 2];
+    const bool same =
+        x1[3 * k] == x[3 * k] && x1[3 * k + 1] == x[3 * k + 1] && x1[3 * k + 2] == x[3 * k + 2];
     const bool none = x1[3 * k] == 0.0 && x1[3 * k + 1] == 0.0 && x1[3 * k + 2] == 0.0;
     kept += same;
     cleared += none;

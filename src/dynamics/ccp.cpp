@@ -106,7 +106,8 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     const auto i = std::size_t(s);
     const Mat3& I = B.inv_inertia[i];
     float* m = &inverse_mass_[kMassStride * i];
-    const double upper[] = {I(0, 0), I(0, 1), I(0, 2), I(1, 1), I(1, 2), I(2, 2), B.inv_mass[i], 0.0};
+    const double upper[] = {I(0, 0), I(0, 1), I(0, 2), I(1, 1),
+                            I(1, 2), I(2, 2), B.inv_mass[i], 0.0};
     for (std::size_t c = 0; c < kMassStride; ++c) m[c] = float(upper[c]);
   }
   // The gather loads a body's velocity as a four-number vector: a spare.
@@ -288,9 +289,12 @@ struct Lanes3 {
 };
 // 12 doubles [x0 y0 z0 x1 y1 z1 ...], as three vectors a, <-> the lanes.
 [[gnu::always_inline]] inline Lanes3 lanes_of(const d4 a[3]) {
-  return {{__builtin_shufflevector(__builtin_shufflevector(a[0], a[1], 0, 3, 6, 7), a[2], 0, 1, 2, 5),
-           __builtin_shufflevector(__builtin_shufflevector(a[0], a[1], 1, 4, 7, 7), a[2], 0, 1, 2, 6),
-           __builtin_shufflevector(__builtin_shufflevector(a[0], a[1], 2, 5, 5, 5), a[2], 0, 1, 4, 7)}};
+  const d4 x01 = __builtin_shufflevector(a[0], a[1], 0, 3, 6, 7);
+  const d4 y01 = __builtin_shufflevector(a[0], a[1], 1, 4, 7, 7);
+  const d4 z01 = __builtin_shufflevector(a[0], a[1], 2, 5, 5, 5);
+  return {{__builtin_shufflevector(x01, a[2], 0, 1, 2, 5),
+           __builtin_shufflevector(y01, a[2], 0, 1, 2, 6),
+           __builtin_shufflevector(z01, a[2], 0, 1, 4, 7)}};
 }
 [[gnu::always_inline]] inline void rows_of(const Lanes3& r, d4 a[3]) {
   const d4 &x = r.c[0], &y = r.c[1], &z = r.c[2];
@@ -472,8 +476,10 @@ template <class T>
   auto lanes = [&](const std::vector<Vec3>& v, const std::size_t* i, d4 out[3]) {
     const d4 r0 = load(v[i[0]].data()), r1 = load(v[i[1]].data()), r2 = load(v[i[2]].data()),
              r3 = load(v[i[3]].data());
-    const d4 xz01 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6), y01 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);
-    const d4 xz23 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6), y23 = __builtin_shufflevector(r2, r3, 1, 5, 3, 7);
+    const d4 xz01 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);
+    const d4 y01 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);
+    const d4 xz23 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
+    const d4 y23 = __builtin_shufflevector(r2, r3, 1, 5, 3, 7);
     out[0] = __builtin_shufflevector(xz01, xz23, 0, 1, 4, 5);
     out[1] = __builtin_shufflevector(y01, y23, 0, 1, 4, 5);
     out[2] = __builtin_shufflevector(xz01, xz23, 2, 3, 6, 7);
@@ -548,11 +554,14 @@ void CcpProblem::scatter_bodies(const double* P, ConstSpan x, bool add_free,
     const d4 ang = __builtin_shufflevector(ang_zxy, ang_zxy, 1, 2, 0, 3);
     // The record's [00 01 02 11] and [12 22 m -]: the inverse inertia's
     // columns are [00 01 02], [01 11 12], [02 12 22].
-    const d4 lo = widen(&inverse_mass_[kMassStride * u]), hi = widen(&inverse_mass_[kMassStride * u + 4]);
-    const d4 col1 = __builtin_shufflevector(lo, hi, 1, 3, 4, 4), col2 = __builtin_shufflevector(lo, hi, 2, 4, 5, 5);
+    const float* record = &inverse_mass_[kMassStride * u];
+    const d4 lo = widen(record), hi = widen(record + 4);
+    const d4 col1 = __builtin_shufflevector(lo, hi, 1, 3, 4, 4);
+    const d4 col2 = __builtin_shufflevector(lo, hi, 2, 4, 5, 5);
     const d4 mass = __builtin_shufflevector(hi, hi, 2, 2, 2, 2);
-    const d4 a0 = __builtin_shufflevector(ang, ang, 0, 0, 0, 0), a1 = __builtin_shufflevector(ang, ang, 1, 1, 1, 1),
-             a2 = __builtin_shufflevector(ang, ang, 2, 2, 2, 2);
+    const d4 a0 = __builtin_shufflevector(ang, ang, 0, 0, 0, 0);
+    const d4 a1 = __builtin_shufflevector(ang, ang, 1, 1, 1, 1);
+    const d4 a2 = __builtin_shufflevector(ang, ang, 2, 2, 2, 2);
     const d4 lin_v = mass * lin, ang_v = lo * a0 + col1 * a1 + col2 * a2;
     dv[u] = Vec3(lin_v[0], lin_v[1], lin_v[2]);
     dw[u] = Vec3(ang_v[0], ang_v[1], ang_v[2]);
@@ -610,7 +619,8 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
     for_blocks(begin, end, [&](std::size_t k0, auto count) __attribute__((always_inline)) {
       BlockRows blk(3 * k0, 3 * count);
       const FrameLanes F = load_frame(&frame_[k0 / kLanes * kFrameBlock]);
-      const Lanes3 g = gather_block(F, &lever_[6 * k0], &a_[k0], &b_[k0], count, dv_, dw_, &bias_[k0]);
+      const Lanes3 g =
+          gather_block(F, &lever_[6 * k0], &a_[k0], &b_[k0], count, dv_, dw_, &bias_[k0]);
       double* pg = blk.out(g1, 3);
       store_rows(pg, g);
       blk.flush(g1, 3);
@@ -715,7 +725,8 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys,
 #pragma omp parallel for schedule(static) if (chunks > 1)
   for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
     auto from = prev_keys.begin();
-    for (std::size_t k = std::size_t(ch) * chunk; k < std::min(nc, std::size_t(ch + 1) * chunk); ++k) {
+    const std::size_t end = std::min(nc, std::size_t(ch + 1) * chunk);
+    for (std::size_t k = std::size_t(ch) * chunk; k < end; ++k) {
       if (from == prev_keys.end() || keys[k] < *from) from = prev_keys.begin();
       const auto it = std::lower_bound(from, prev_keys.end(), keys[k]);
       from = it;

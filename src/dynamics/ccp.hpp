@@ -52,14 +52,16 @@ using FrameScalar = float;
 #endif
 
 // Storage on cache-line boundaries: a 64-byte block of the kernel is then
-// one line, and a block of rows may take streaming stores.
+// one line.
 template <class T>
 struct CacheAligned {
   using value_type = T;
   CacheAligned() = default;
   template <class U>
   CacheAligned(const CacheAligned<U>&) {}
-  T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t(64))); }
+  T* allocate(std::size_t n) {
+    return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t(64)));
+  }
   void deallocate(T* p, std::size_t) { ::operator delete(p, std::align_val_t(64)); }
   bool operator==(const CacheAligned&) const { return true; }
 };
@@ -302,8 +304,10 @@ class CcpProblem {
   // Bodies as the bodies' pass reads them, one 32-byte record each: the
   // inverse inertia's upper triangle (00 01 02 11 12 22), the inverse mass,
   // a spare; in float, a third of the 80 bytes of SolverBodies' double Mat3
-  // and mass, which were the pass's largest stream. N is made from them
-  // alone, so it stays symmetric and positive.
+  // and mass, which were the pass's largest stream. scatter_bodies, and so
+  // N, uses them alone, so N stays symmetric and positive; the wall guard
+  // and PGS's own sweeps apply SolverBodies' doubles, which differ from
+  // them by float's rounding.
   static constexpr std::size_t kMassStride = 8;
   AlignedVector<float> inverse_mass_;
   std::vector<BilateralRow> rows_;
