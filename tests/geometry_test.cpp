@@ -8,10 +8,12 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <random>
 #include <set>
 
 #include "collision/broadphase.hpp"
+#include "collision/contacts.hpp"
 #include "geometry/shapes.hpp"
 
 namespace ces::geo {
@@ -603,5 +605,50 @@ TEST(GridBroadphase, FindsExactlyTheOverlappingPairsInOrder) {
           expected.emplace_back(std::int32_t(i), std::int32_t(j));
     EXPECT_GT(expected.size(), n / 10);  // a dense enough cloud to test something
     EXPECT_EQ(found, expected);
+  }
+}
+
+// The contact memory against std::map: random keys (many sharing particle
+// ids, as a clump's contacts do), stored in random order, then every stored
+// key and as many absent ones looked up. Three rounds on one table: the
+// second stores more keys than clear() was told (the table grows), the
+// third fewer (nothing of the earlier rounds may be found). A key stored
+// twice keeps its first value.
+TEST(ContactMemory, FindsWhatWasStoredAndNothingElse) {
+  using ces::ContactKey, ces::ContactMemory, ces::Vec3;
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<std::uint64_t> id(0, 300);
+  std::uniform_int_distribution<std::uint32_t> feature(0, 18);
+  auto random_key = [&] {
+    const bool body = feature(rng) == 0;
+    return ContactKey{body ? ces::kBodyTag | (id(rng) % 4) : id(rng), id(rng), feature(rng),
+                      feature(rng)};
+  };
+  ContactMemory memory;
+  std::vector<ContactKey> earlier;
+  for (const std::size_t n : {20000u, 50000u, 300u}) {
+    memory.clear(n == 50000u ? 1000u : n);
+    std::map<ContactKey, Vec3> expected;
+    for (std::size_t k = 0; k < n; ++k) {
+      const ContactKey key = random_key();
+      const Vec3 value(double(k), -double(k), 0.5);
+      memory.insert(key, value);
+      expected.emplace(key, value);  // keeps the first, as insert does
+    }
+    EXPECT_EQ(memory.size(), expected.size());
+    for (const auto& [key, value] : expected) {
+      const Vec3* found = memory.find(key);
+      ASSERT_NE(found, nullptr);
+      EXPECT_EQ(*found, value);
+    }
+    std::size_t absent = 0;
+    for (const ContactKey& key : earlier) {
+      if (expected.count(key)) continue;
+      EXPECT_EQ(memory.find(key), nullptr);
+      ++absent;
+    }
+    if (!earlier.empty()) EXPECT_GT(absent, 100u);
+    earlier.clear();
+    for (const auto& entry : expected) earlier.push_back(entry.first);
   }
 }

@@ -64,4 +64,49 @@ void Contacts::compact_tail(std::size_t first, const std::vector<std::uint8_t>& 
   squeeze(key);
 }
 
+namespace {
+// splitmix64's finaliser: every input bit moves every output bit.
+std::uint64_t mix(std::uint64_t x) {
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+}  // namespace
+
+void ContactMemory::clear(std::size_t count) {
+  std::size_t capacity = 16;
+  while (capacity < 2 * count) capacity *= 2;
+  slots_.assign(capacity, kEmpty);
+  mask_ = capacity - 1;
+  keys_.clear();
+  values_.clear();
+}
+
+std::size_t ContactMemory::home(const ContactKey& key) const {
+  const std::uint64_t features = std::uint64_t{key.feature_a} << 32 | key.feature_b;
+  return std::size_t(mix(key.a ^ mix(key.b ^ mix(features)))) & mask_;
+}
+
+void ContactMemory::insert(const ContactKey& key, const Vec3& value) {
+  if (2 * (keys_.size() + 1) > slots_.size()) {  // past the size clear() was told: grow
+    const std::vector<ContactKey> keys = keys_;
+    const std::vector<Vec3> values = values_;
+    clear(keys.size() + 1);
+    for (std::size_t k = 0; k < keys.size(); ++k) insert(keys[k], values[k]);
+  }
+  std::size_t s = home(key);
+  for (; slots_[s] != kEmpty; s = (s + 1) & mask_)
+    if (keys_[slots_[s]] == key) return;
+  slots_[s] = std::uint32_t(keys_.size());
+  keys_.push_back(key);
+  values_.push_back(value);
+}
+
+const Vec3* ContactMemory::find(const ContactKey& key) const {
+  if (slots_.empty()) return nullptr;
+  for (std::size_t s = home(key); slots_[s] != kEmpty; s = (s + 1) & mask_)
+    if (keys_[slots_[s]] == key) return &values_[slots_[s]];
+  return nullptr;
+}
+
 }  // namespace ces

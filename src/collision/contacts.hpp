@@ -41,4 +41,30 @@ struct Contacts {
   void compact_tail(std::size_t first, const std::vector<std::uint8_t>& keep);
 };
 
+// A vector per contact, kept from one step to the next and found by key:
+// the warm start's impulses, DEM's tangential springs. A hash table with
+// linear probing, at most half full, so storing and finding n contacts costs
+// O(n). (Sorting the keys cost n log n a step, on one thread: the collider
+// emits contacts in particle-index order, which the spatial reordering makes
+// unlike key order. In ces_pcb at 2 threads, that sort and its copy took
+// 4.5 % of the main thread's time while the other waited.) A key finds its value whatever order the keys were stored in,
+// so what a step finds does not depend on threads.
+class ContactMemory {
+ public:
+  // Empties the table, sized for `count` keys. Its vectors only grow.
+  void clear(std::size_t count);
+  // Stores key -> value. A key stored twice keeps its first value.
+  void insert(const ContactKey& key, const Vec3& value);
+  const Vec3* find(const ContactKey& key) const;  // nullptr: not stored
+  std::size_t size() const { return keys_.size(); }
+
+ private:
+  static constexpr std::uint32_t kEmpty = ~std::uint32_t{0};
+  std::size_t home(const ContactKey& key) const;
+  std::vector<std::uint32_t> slots_;  // index into keys_ and values_, or kEmpty
+  std::vector<ContactKey> keys_;
+  std::vector<Vec3> values_;
+  std::size_t mask_ = 0;
+};
+
 }  // namespace ces

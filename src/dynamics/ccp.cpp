@@ -713,31 +713,19 @@ CcpProblem::Frame CcpProblem::frame(std::size_t k) const {
   return F;
 }
 
-void CcpProblem::warm_start(const std::vector<ContactKey>& keys,
-                            const std::vector<ContactKey>& prev_keys,
-                            const std::vector<Vec3>& prev_impulse, ConstSpan prev_x, Span x) const {
-  std::fill(x.begin(), x.end(), 0.0);
-  // Both lists come sorted when the contacts are (the usual case): then a
-  // merge, else a binary search per contact. In fixed chunks, each starting
-  // with a search, in parallel: a contact's match does not depend on them.
-  const std::size_t nc = keys.size(), chunk = std::size_t(kReduceChunk);
-  const auto chunks = std::ptrdiff_t((nc + chunk - 1) / chunk);
-#pragma omp parallel for schedule(static) if (chunks > 1)
-  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
-    auto from = prev_keys.begin();
-    const std::size_t end = std::min(nc, std::size_t(ch + 1) * chunk);
-    for (std::size_t k = std::size_t(ch) * chunk; k < end; ++k) {
-      if (from == prev_keys.end() || keys[k] < *from) from = prev_keys.begin();
-      const auto it = std::lower_bound(from, prev_keys.end(), keys[k]);
-      from = it;
-      if (it == prev_keys.end() || !(*it == keys[k])) continue;
-      const Vec3& P = prev_impulse[std::size_t(it - prev_keys.begin())];
-      const Frame F = frame(k);
-      x[3 * k] = F.n.dot(P);
-      x[3 * k + 1] = F.t1.dot(P);
-      x[3 * k + 2] = F.t2.dot(P);
-    }
+void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMemory& previous,
+                            ConstSpan prev_x, Span x) const {
+  const auto nc = std::ptrdiff_t(keys.size());
+#pragma omp parallel for schedule(static) if (nc > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < nc; ++s) {
+    const auto k = std::size_t(s);
+    const Vec3* P = previous.find(keys[k]);
+    const Frame F = frame(k);
+    x[3 * k] = P ? F.n.dot(*P) : 0.0;
+    x[3 * k + 1] = P ? F.t1.dot(*P) : 0.0;
+    x[3 * k + 2] = P ? F.t2.dot(*P) : 0.0;
   }
+  std::fill(x.begin() + 3 * nc, x.end(), 0.0);
   const std::size_t base = 3 * a_.size();
   const auto prev_base = std::ptrdiff_t(prev_x.size()) - std::ptrdiff_t(rows_.size());
   if (prev_base >= 0 && prev_base % 3 == 0)

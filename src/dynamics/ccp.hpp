@@ -146,11 +146,11 @@ class CcpProblem {
   // Contact impulses as world vectors (normal + friction), for warm starts:
   // a world vector survives the rotation of the tangent frame between steps.
   void world_impulses(ConstSpan x, std::vector<Vec3>& out) const;
-  // Initial guess: each contact's previous world impulse (matched by key;
-  // prev_keys sorted) re-expressed in its new frame; bilateral rows
-  // keep their previous values.
-  void warm_start(const std::vector<ContactKey>& keys, const std::vector<ContactKey>& prev_keys,
-                  const std::vector<Vec3>& prev_impulse, ConstSpan prev_x, Span x) const;
+  // Initial guess: each contact's previous world impulse (found by key in
+  // `previous`) re-expressed in its new frame; bilateral rows keep their
+  // previous values (from prev_x).
+  void warm_start(const std::vector<ContactKey>& keys, const ContactMemory& previous,
+                  ConstSpan prev_x, Span x) const;
 
   // The wall guard, after a solve (world.cpp): for each contact of a
   // particle with a body of infinite mass (a wall, the drum, a mesh) whose

@@ -155,11 +155,9 @@ void DemContacts::contact_force(const Model& m, const Particles& p, const Contac
 
   // The history rotates with the contact: keep its length in the new tangent plane.
   Vec3 xi = Vec3::Zero();
-  const auto it = std::lower_bound(prev_keys_.begin(), prev_keys_.end(), c.key[k]);
-  if (it != prev_keys_.end() && *it == c.key[k]) {
-    const Vec3& old = prev_xi_[std::size_t(it - prev_keys_.begin())];
-    const Vec3 in_plane = old - n.dot(old) * n;
-    if (in_plane.squaredNorm() > 0.0) xi = in_plane * (old.norm() / in_plane.norm());
+  if (const Vec3* old = prev_xi_.find(c.key[k])) {
+    const Vec3 in_plane = *old - n.dot(*old) * n;
+    if (in_plane.squaredNorm() > 0.0) xi = in_plane * (old->norm() / in_plane.norm());
   }
   xi += h * vt;
   const double ct = kTsuji * pc.beta * std::sqrt(st * pc.m_star);
@@ -187,17 +185,9 @@ double DemContacts::damping(double e) const {
 }
 
 void DemContacts::remember(const Contacts& c) {
-  order_.clear();
+  prev_xi_.clear(c.size());
   for (std::size_t k = 0; k < c.size(); ++k)
-    if (c.gap[k] < 0.0) order_.push_back(k);
-  std::sort(order_.begin(), order_.end(),
-            [&](std::size_t a, std::size_t b) { return c.key[a] < c.key[b]; });
-  prev_keys_.resize(order_.size());
-  prev_xi_.resize(order_.size());
-  for (std::size_t j = 0; j < order_.size(); ++j) {
-    prev_keys_[j] = c.key[order_[j]];
-    prev_xi_[j] = xi_[order_[j]];
-  }
+    if (c.gap[k] < 0.0) prev_xi_.insert(c.key[k], xi_[k]);
 }
 
 }  // namespace ces

@@ -62,13 +62,11 @@ class DemContacts {
   void remember(const Contacts& c);
 
   std::vector<Vec3> force_, xi_;  // per contact: force on B (world), new history
-  // Tangential history of the overlapping contacts, sorted by key.
-  std::vector<ContactKey> prev_keys_;
-  std::vector<Vec3> prev_xi_;
+  // Last step's tangential history of the overlapping contacts, by key.
+  ContactMemory prev_xi_;
   // beta per restitution value met so far, sorted by e.
   std::vector<std::pair<double, double>> damping_;
   ContactAdjacency adj_;
-  std::vector<std::size_t> order_;
 };
 
 }  // namespace ces

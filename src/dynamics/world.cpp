@@ -201,7 +201,7 @@ const StepStats& World::step() {
   problem_.assemble(ccp_contacts, solver_bodies_, rows_, h, m.contact);
   gamma_.resize(problem_.row_count());
   if (m.solver.warm_start)
-    problem_.warm_start(ccp_contacts.key, prev_keys_, prev_impulse_, prev_gamma_, gamma_);
+    problem_.warm_start(ccp_contacts.key, prev_impulses_, prev_gamma_, gamma_);
   else
     std::fill(gamma_.begin(), gamma_.end(), 0.0);
   for (std::size_t k = 0; k < contacts_.size(); ++k) {
@@ -451,22 +451,8 @@ void World::remember_impulses() {
   problem_.world_impulses(gamma_, impulse_scratch_);
   prev_gamma_ = gamma_;
   const std::vector<ContactKey>& keys = contacts_.key;
-  if (std::is_sorted(keys.begin(), keys.end())) {  // the collider's usual order
-    prev_keys_ = keys;
-    prev_impulse_.swap(impulse_scratch_);
-    return;
-  }
-  const std::size_t n = keys.size();
-  order_scratch_.resize(n);
-  std::iota(order_scratch_.begin(), order_scratch_.end(), std::size_t{0});
-  std::sort(order_scratch_.begin(), order_scratch_.end(),
-            [&](std::size_t a, std::size_t b) { return keys[a] < keys[b]; });
-  prev_keys_.resize(n);
-  prev_impulse_.resize(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    prev_keys_[k] = keys[order_scratch_[k]];
-    prev_impulse_[k] = impulse_scratch_[order_scratch_[k]];
-  }
+  prev_impulses_.clear(keys.size());
+  for (std::size_t k = 0; k < keys.size(); ++k) prev_impulses_.insert(keys[k], impulse_scratch_[k]);
 }
 
 }  // namespace ces

@@ -131,12 +131,11 @@ class World {
   std::vector<BilateralRow> rows_;
   SolverWorkspace workspace_;
   std::vector<double> gamma_;
-  // Warm start: last step's impulses, sorted by contact key.
-  std::vector<ContactKey> prev_keys_;
-  std::vector<Vec3> prev_impulse_;
+  // Warm start: last step's contact impulses as world vectors, by key, and
+  // its solution (for the bilateral rows).
+  ContactMemory prev_impulses_;
   std::vector<double> prev_gamma_;
   std::vector<Vec3> impulse_scratch_;
-  std::vector<std::size_t> order_scratch_;
   DemContacts dem_;
   Particles reorder_scratch_;
   std::vector<std::uint32_t> order_;
