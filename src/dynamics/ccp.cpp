@@ -655,8 +655,10 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
 }
 
 void CcpProblem::world_impulses(ConstSpan x, std::vector<Vec3>& out) const {
+  const auto nc = std::ptrdiff_t(a_.size());
   out.resize(a_.size());
-  for (std::size_t k = 0; k < a_.size(); ++k) out[k] = world_impulse(k, x);
+#pragma omp parallel for schedule(static) if (nc > kParallelMin)
+  for (std::ptrdiff_t k = 0; k < nc; ++k) out[std::size_t(k)] = world_impulse(std::size_t(k), x);
 }
 
 void CcpProblem::to_world(ConstSpan x, Span P) const {
