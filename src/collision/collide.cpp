@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <span>
 
 #include "common/parallel.hpp"
 
@@ -51,7 +52,7 @@ void reduce_manifold(Contacts& c, std::size_t first) {
   if (n <= kKeep) return;
   static thread_local std::vector<int> group;
   static thread_local std::vector<std::uint8_t> keep;
-  static thread_local std::vector<std::size_t> members;
+  static thread_local std::vector<std::size_t> by_group, start, fill;
   group.assign(n, -1);
   keep.assign(n, 0);
   int groups = 0;
@@ -62,14 +63,23 @@ void reduce_manifold(Contacts& c, std::size_t first) {
       if (group[j] < 0 && ni.dot(c.normal[first + j]) > kSameNormal) group[j] = groups;
     ++groups;
   }
-  for (int g = 0; g < groups; ++g) {
-    members.clear();
-    for (std::size_t i = 0; i < n; ++i)
-      if (group[i] == g) members.push_back(first + i);
+  // The contacts by group, each group's in contact order (a counting sort):
+  // one pass, where scanning every contact for each group cost as much as
+  // the grouping.
+  start.assign(std::size_t(groups) + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) ++start[std::size_t(group[i]) + 1];
+  for (std::size_t g = 0; g < std::size_t(groups); ++g) start[g + 1] += start[g];
+  fill.assign(start.begin(), start.end() - 1);
+  by_group.resize(n);
+  for (std::size_t i = 0; i < n; ++i) by_group[fill[std::size_t(group[i])]++] = first + i;
+  bool reduced = false;
+  for (std::size_t g = 0; g < std::size_t(groups); ++g) {
+    const std::span<const std::size_t> members(by_group.data() + start[g], start[g + 1] - start[g]);
     if (members.size() <= kKeep) {
       for (std::size_t k : members) keep[k - first] = 1;
       continue;
     }
+    reduced = true;
     // The highest score wins; ties go to the earlier contact.
     auto best = [&](auto score) {
       std::size_t arg = members[0];
@@ -90,7 +100,7 @@ void reduce_manifold(Contacts& c, std::size_t first) {
     const std::size_t right = best([&](std::size_t k) { return -(c.point[k] - pa).dot(side); });
     for (std::size_t k : {deepest, a, b, left, right}) keep[k - first] = 1;
   }
-  c.compact_tail(first, keep);
+  if (reduced) c.compact_tail(first, keep);
 }
 
 template <class Fill>
