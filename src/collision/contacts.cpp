@@ -47,10 +47,17 @@ void Contacts::append(const Contacts& o) {
 }
 
 void Contacts::compact_tail(std::size_t first, const std::vector<std::uint8_t>& keep) {
+  // Without a branch per entry: which are kept follows no pattern (a flake
+  // on the drum keeps 5 of its 19 contacts), and the mispredicted branches
+  // made this 2.4 % of a ces_pcb run. Each entry is written where the next
+  // kept one goes (never past the one being read) and the cursor moves on
+  // only if it is kept.
   auto squeeze = [&](auto& v) {
     std::size_t to = first;
-    for (std::size_t k = 0; k < keep.size(); ++k)
-      if (keep[k]) v[to++] = v[first + k];
+    for (std::size_t k = 0; k < keep.size(); ++k) {
+      v[to] = v[first + k];
+      to += keep[k] ? 1 : 0;
+    }
     v.resize(to);
   };
   squeeze(body_a);
