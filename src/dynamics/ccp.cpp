@@ -717,17 +717,23 @@ CcpProblem::Frame CcpProblem::frame(std::size_t k) const {
 
 void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMemory& previous,
                             ConstSpan prev_x, Span x) const {
-  const auto nc = std::ptrdiff_t(keys.size());
-#pragma omp parallel for schedule(static) if (nc > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < nc; ++s) {
-    const auto k = std::size_t(s);
-    const Vec3* P = previous.find(keys[k]);
-    const Frame F = frame(k);
-    x[3 * k] = P ? F.n.dot(*P) : 0.0;
-    x[3 * k + 1] = P ? F.t1.dot(*P) : 0.0;
-    x[3 * k + 2] = P ? F.t2.dot(*P) : 0.0;
+  // In fixed chunks, each with a cursor of its own (ContactMemory::find),
+  // in parallel: what a contact finds does not depend on them.
+  const std::size_t nc = keys.size(), chunk = std::size_t(kReduceChunk);
+  const auto chunks = std::ptrdiff_t((nc + chunk - 1) / chunk);
+#pragma omp parallel for schedule(static) if (chunks > 1)
+  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
+    const std::size_t begin = std::size_t(ch) * chunk, end = std::min(nc, begin + chunk);
+    std::size_t cursor = begin;  // where the last step's order would have it
+    for (std::size_t k = begin; k < end; ++k) {
+      const Vec3* P = previous.find(keys[k], cursor);
+      const Frame F = frame(k);
+      x[3 * k] = P ? F.n.dot(*P) : 0.0;
+      x[3 * k + 1] = P ? F.t1.dot(*P) : 0.0;
+      x[3 * k + 2] = P ? F.t2.dot(*P) : 0.0;
+    }
   }
-  std::fill(x.begin() + 3 * nc, x.end(), 0.0);
+  std::fill(x.begin() + 3 * std::ptrdiff_t(nc), x.end(), 0.0);
   const std::size_t base = 3 * a_.size();
   const auto prev_base = std::ptrdiff_t(prev_x.size()) - std::ptrdiff_t(rows_.size());
   if (prev_base >= 0 && prev_base % 3 == 0)

@@ -155,7 +155,8 @@ void DemContacts::contact_force(const Model& m, const Particles& p, const Contac
 
   // The history rotates with the contact: keep its length in the new tangent plane.
   Vec3 xi = Vec3::Zero();
-  if (const Vec3* old = prev_xi_.find(c.key[k])) {
+  std::size_t guess = k;  // where the last step's order would have it
+  if (const Vec3* old = prev_xi_.find(c.key[k], guess)) {
     const Vec3 in_plane = *old - n.dot(*old) * n;
     if (in_plane.squaredNorm() > 0.0) xi = in_plane * (old->norm() / in_plane.norm());
   }
@@ -185,9 +186,8 @@ double DemContacts::damping(double e) const {
 }
 
 void DemContacts::remember(const Contacts& c) {
-  prev_xi_.clear(c.size());
-  for (std::size_t k = 0; k < c.size(); ++k)
-    if (c.gap[k] < 0.0) prev_xi_.insert(c.key[k], xi_[k]);
+  // Contacts not touching have xi 0: found next step, the same as not found.
+  prev_xi_.assign(c.key, xi_);
 }
 
 }  // namespace ces

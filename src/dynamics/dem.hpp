@@ -62,7 +62,7 @@ class DemContacts {
   void remember(const Contacts& c);
 
   std::vector<Vec3> force_, xi_;  // per contact: force on B (world), new history
-  // Last step's tangential history of the overlapping contacts, by key.
+  // Last step's tangential history, by key.
   ContactMemory prev_xi_;
   // beta per restitution value met so far, sorted by e.
   std::vector<std::pair<double, double>> damping_;

@@ -450,9 +450,7 @@ void World::reorder_in_space() {
 void World::remember_impulses() {
   problem_.world_impulses(gamma_, impulse_scratch_);
   prev_gamma_ = gamma_;
-  const std::vector<ContactKey>& keys = contacts_.key;
-  prev_impulses_.clear(keys.size());
-  for (std::size_t k = 0; k < keys.size(); ++k) prev_impulses_.insert(keys[k], impulse_scratch_[k]);
+  prev_impulses_.assign(contacts_.key, impulse_scratch_);
 }
 
 }  // namespace ces
