@@ -610,9 +610,9 @@ TEST(GridBroadphase, FindsExactlyTheOverlappingPairsInOrder) {
 
 // The contact memory against std::map: random keys (many sharing particle
 // ids, as a clump's contacts do), stored in random order, then every stored
-// key and as many absent ones looked up. Three rounds on one table, of
-// 20000, 50000 and 300 keys: nothing of an earlier round may be found. A
-// key stored twice keeps its first value.
+// key and as many absent ones looked up, with and without a cursor. Three
+// rounds on one table, of 20000, 50000 and 300 keys: nothing of an earlier
+// round may be found.
 TEST(ContactMemory, FindsWhatWasStoredAndNothingElse) {
   using ces::ContactKey, ces::ContactMemory, ces::Vec3;
   std::mt19937 rng(11);
@@ -627,38 +627,45 @@ TEST(ContactMemory, FindsWhatWasStoredAndNothingElse) {
   std::vector<ContactKey> earlier;
   for (const std::size_t n : {20000u, 50000u, 300u}) {
     std::map<ContactKey, Vec3> expected;
-    std::vector<ContactKey> keys, stored;  // stored: in order, without repeats
+    std::vector<ContactKey> keys;
     std::vector<Vec3> values;
-    for (std::size_t k = 0; k < n; ++k) {
-      keys.push_back(random_key());
-      values.emplace_back(double(k), -double(k), 0.5);
-      if (expected.emplace(keys.back(), values.back()).second) stored.push_back(keys.back());
+    while (keys.size() < n) {  // distinct keys, as the collider's
+      const ContactKey key = random_key();
+      const Vec3 value(double(keys.size()), -double(keys.size()), 0.5);
+      if (!expected.emplace(key, value).second) continue;
+      keys.push_back(key);
+      values.push_back(value);
     }
-    keys.push_back(keys.front());  // a repeat, whatever the draws gave
-    values.emplace_back(-1.0, -1.0, -1.0);
     memory.assign(keys, values);
-    EXPECT_EQ(memory.size(), expected.size());
+    EXPECT_EQ(memory.size(), n);
+    // With a cursor, in the order stored: it moves one key at a time, and
+    // the hash table is not needed.
+    std::size_t cursor = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3* found = memory.find(keys[i], cursor);
+      ASSERT_NE(found, nullptr);
+      EXPECT_EQ(*found, values[i]);
+      EXPECT_EQ(cursor, i + 1);
+    }
+    // From the wrong place, on two threads at once (the first miss builds
+    // the table): by the hash, and the cursor moves past the key found.
+    std::vector<std::size_t> wrong(n, n);
+#pragma omp parallel for num_threads(2)
+    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) {
+      std::size_t c = (std::size_t(i) + 7) % n;
+      const Vec3* found = memory.find(keys[std::size_t(i)], c);
+      wrong[std::size_t(i)] = found && *found == values[std::size_t(i)] ? c : n + 1;
+    }
+    for (std::size_t i = 0; i < n; ++i) EXPECT_EQ(wrong[i], i + 1) << i;
     for (const auto& [key, value] : expected) {
       const Vec3* found = memory.find(key);
       ASSERT_NE(found, nullptr);
       EXPECT_EQ(*found, value);
     }
-    // With a cursor: in the order stored it moves one key at a time; from
-    // a wrong place it finds the key by its hash and moves past it.
-    std::size_t cursor = 0;
-    for (std::size_t i = 0; i < stored.size(); ++i) {
-      const Vec3* found = memory.find(stored[i], cursor);
-      ASSERT_NE(found, nullptr);
-      EXPECT_EQ(*found, expected.at(stored[i]));
-      EXPECT_EQ(cursor, i + 1);
-    }
-    cursor = 0;
-    EXPECT_EQ(*memory.find(stored.back(), cursor), expected.at(stored.back()));
-    EXPECT_EQ(cursor, stored.size());
     std::size_t absent = 0;
     for (const ContactKey& key : earlier) {
       if (expected.count(key)) continue;
-      cursor = 0;
+      std::size_t cursor = 0;
       EXPECT_EQ(memory.find(key), nullptr);
       EXPECT_EQ(memory.find(key, cursor), nullptr);
       ++absent;

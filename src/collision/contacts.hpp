@@ -2,7 +2,9 @@
 // spheres / sphere and surface, in a deterministic order, with a persistent
 // key so impulses can be carried from one step to the next.
 #pragma once
+#include <atomic>
 #include <compare>
+#include <mutex>
 #include <cstdint>
 #include <vector>
 
@@ -42,35 +44,41 @@ struct Contacts {
 };
 
 // A vector per contact, kept from one step to the next and found by key:
-// the warm start's impulses, DEM's tangential springs. A hash table with
-// linear probing, at most half full, so storing and finding n contacts costs
-// O(n). (Sorting the keys cost n log n a step, on one thread: the collider
-// emits contacts in particle-index order, which the spatial reordering makes
-// unlike key order. In ces_pcb at 2 threads, that sort and its copy took
-// 4.5 % of the main thread's time while the other waited.) A key finds its value whatever order the keys were stored in,
-// so what a step finds does not depend on threads.
+// the warm start's impulses, DEM's tangential springs. Lookups try the
+// key's place in the last step's order first (a cursor); those that miss go
+// to a hash table (linear probing, at most half full), built on the first
+// miss: O(n) for n keys, where sorting them cost n log n a step on one
+// thread (the collider emits contacts in particle-index order, which the
+// spatial reordering makes unlike key order: in ces_pcb at 2 threads that
+// sort took 4.5 % of the main thread's time while the other waited). A
+// key finds its value whatever order the keys were stored in, so what a
+// step finds does not depend on threads.
 class ContactMemory {
  public:
-  // Replaces the contents by keys[k] -> values[k]. A key stored twice
-  // keeps its first value.
+  // Replaces the contents by keys[k] -> values[k]. The keys are distinct
+  // (the collider's are; a repeated one finds one of its values, the same
+  // for any thread count).
   void assign(const std::vector<ContactKey>& keys, const std::vector<Vec3>& values);
   const Vec3* find(const ContactKey& key) const;  // nullptr: not stored
   // The same, trying first the key stored at `cursor` and moving it past
   // the key found: a scan in the order the keys were stored reads them in
-  // sequence, not at random. A step's contacts come mostly in the last
-  // step's order (all of them in a bed at rest), and at 3e5 contacts the
-  // hashed lookups alone cost 100 ns each in cache misses.
+  // sequence and never builds the table (a bed at rest), where hashed
+  // lookups cost a cache miss each (75 ns at 3e5 contacts). Safe to call
+  // from several threads at once.
   const Vec3* find(const ContactKey& key, std::size_t& cursor) const;
   std::size_t size() const { return keys_.size(); }
 
  private:
   static constexpr std::uint32_t kEmpty = ~std::uint32_t{0};
   std::size_t home(const ContactKey& key) const;
-  void place(const ContactKey& key, const Vec3& value, std::size_t slot);
-  std::vector<std::uint32_t> slots_;  // index into keys_ and values_, or kEmpty
-  std::vector<ContactKey> keys_;
+  void build_table() const;
+  std::vector<ContactKey> keys_;  // in the order stored
   std::vector<Vec3> values_;
-  std::size_t mask_ = 0;
+  // The hash table, made by the first lookup that misses its cursor.
+  mutable std::vector<std::uint32_t> slots_;  // index into keys_, or kEmpty
+  mutable std::size_t mask_ = 0;
+  mutable std::atomic<bool> built_{false};
+  mutable std::mutex build_;
 };
 
 }  // namespace ces
