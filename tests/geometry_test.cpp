@@ -636,7 +636,9 @@ TEST(ContactMemory, FindsWhatWasStoredAndNothingElse) {
       keys.push_back(key);
       values.push_back(value);
     }
-    memory.assign(keys, values);
+    std::vector<Vec3> given = values;
+    memory.assign(keys, given);  // swapped in: given holds the last round's values
+    EXPECT_EQ(given.size(), earlier.size());
     EXPECT_EQ(memory.size(), n);
     // With a cursor, in the order stored: it moves one key at a time, and
     // the hash table is not needed.

@@ -88,9 +88,9 @@ std::size_t ContactMemory::home(const ContactKey& key) const {
   return std::size_t(mix(key.a ^ mix(key.b ^ mix(features)))) & mask_;
 }
 
-void ContactMemory::assign(const std::vector<ContactKey>& keys, const std::vector<Vec3>& values) {
+void ContactMemory::assign(const std::vector<ContactKey>& keys, std::vector<Vec3>& values) {
   keys_ = keys;
-  values_ = values;
+  values_.swap(values);
   built_.store(false, std::memory_order_release);
 }
 

@@ -57,8 +57,10 @@ class ContactMemory {
  public:
   // Replaces the contents by keys[k] -> values[k]. The keys are distinct
   // (the collider's are; a repeated one finds one of its values, the same
-  // for any thread count).
-  void assign(const std::vector<ContactKey>& keys, const std::vector<Vec3>& values);
+  // for any thread count). The values are swapped in, not copied: `values`
+  // comes back holding the memory's previous buffer, for the caller to
+  // fill next step without allocating.
+  void assign(const std::vector<ContactKey>& keys, std::vector<Vec3>& values);
   const Vec3* find(const ContactKey& key) const;  // nullptr: not stored
   // The same, trying first the key stored at `cursor` and moving it past
   // the key found: a scan in the order the keys were stored reads them in

@@ -733,8 +733,8 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMe
       x[3 * k + 2] = P ? F.t2.dot(*P) : 0.0;
     }
   }
-  std::fill(x.begin() + 3 * std::ptrdiff_t(nc), x.end(), 0.0);
-  const std::size_t base = 3 * a_.size();
+  const std::size_t base = 3 * nc;
+  std::fill(x.begin() + std::ptrdiff_t(base), x.end(), 0.0);
   const auto prev_base = std::ptrdiff_t(prev_x.size()) - std::ptrdiff_t(rows_.size());
   if (prev_base >= 0 && prev_base % 3 == 0)
     for (std::size_t r = 0; r < rows_.size(); ++r) x[base + r] = prev_x[std::size_t(prev_base) + r];

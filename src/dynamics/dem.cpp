@@ -186,7 +186,8 @@ double DemContacts::damping(double e) const {
 }
 
 void DemContacts::remember(const Contacts& c) {
-  // Contacts not touching have xi 0: found next step, the same as not found.
+  // Contacts not touching have xi 0: found next step, the same as not
+  // found. xi_ comes back with the last buffer; apply() refills it.
   prev_xi_.assign(c.key, xi_);
 }
 
