@@ -721,7 +721,7 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMe
   // in parallel: what a contact finds does not depend on them.
   const std::size_t nc = keys.size(), chunk = std::size_t(kReduceChunk);
   const auto chunks = std::ptrdiff_t((nc + chunk - 1) / chunk);
-#pragma omp parallel for schedule(static) if (chunks > 1)
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(nc) > kParallelMin)
   for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
     const std::size_t begin = std::size_t(ch) * chunk, end = std::min(nc, begin + chunk);
     std::size_t cursor = begin;  // where the last step's order would have it
