@@ -1,4 +1,5 @@
 // Engine checks against closed forms (issue 2). Each test states its tolerance.
+#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -654,11 +655,14 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
     for (std::size_t i = 0; i < m; ++i) s = std::max(s, std::abs(v[i]));
     return s;
   };
-  // The reference: Π(y - step gy) row by row in contact frames, in world rows.
+  // The reference: Π(y - step W gy) row by row in contact frames, in world
+  // rows (a contact's weight is the same on its three rows, so W commutes
+  // with the change of frame).
   auto plain_step = [&](const std::vector<double>& yw, const std::vector<double>& gw, double step) {
-    std::vector<double> yl(m), gl(m), out(m), world = rows();
+    std::vector<double> yl(m), gl(m), out(m), world = rows(), wg = rows();
+    for (std::size_t i = 0; i < m; ++i) wg[i] = p.metric_weight(i) * gw[i];
     p.to_local(cspan(yw), yl);
-    p.to_local(cspan(gw), gl);
+    p.to_local(cspan(wg), gl);
     p.projected_step(yl, gl, step, out);
     p.to_world(out, span(world));
     return world;
@@ -687,7 +691,7 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   double dd = 0, dnd = 0, uphill = 0;
   for (std::size_t i = 0; i < m; ++i) {
     const double d = x1[i] - y[i];
-    dd += d * d;
+    dd += d * d / p.metric_weight(i);
     dnd += d * (g[i] - gy[i]);
     uphill += gy[i] * (x1[i] - x[i]);
   }
@@ -775,6 +779,77 @@ TEST(Engine, SolversReportNonFiniteResidual) {
     EXPECT_GE(s.contacts, 1u) << int(method);
     EXPECT_TRUE(std::isnan(s.solver.residual)) << int(method) << ": " << s.solver.residual;
     EXPECT_FALSE(s.solver.converged) << int(method);
+  }
+}
+
+// APGD's metric (solve_apgd) gives each contact a step scaled to its own
+// block of N, so decoupled contacts converge alike whatever their masses:
+// 25 spheres at rest on the ground, densities 10 to 1e5 kg/m^3, one step
+// from a cold start to 1e-8 m/s: 11 iterations. With one step for all
+// (set by the lightest, as before the metric) it had not converged after
+// 500.
+TEST(Engine, ApgdConvergesAlikeAcrossMassRatios) {
+  auto m = base_model();
+  std::vector<Material> mats;
+  for (int i = 0; i < 5; ++i) mats.push_back({"m" + std::to_string(i), std::pow(10.0, 1 + i), 0.5, 0.0});
+  m->materials = MaterialTable(mats, {});
+  m->bodies.push_back(test::ground_plane());
+  m->solver.warm_start = false;
+  m->solver.tolerance = 1e-8;
+  World w(m);
+  const double r = 0.002;
+  for (int i = 0; i < 25; ++i) w.add_particle(0, r, i % 5, Vec3(3 * r * i, r, 0));
+  const StepStats& s = w.step();
+  ASSERT_EQ(s.contacts, 25u);
+  EXPECT_TRUE(s.solver.converged);
+  EXPECT_LE(s.solver.iterations, 40);
+  RecordProperty("iterations", s.solver.iterations);
+}
+
+// The metric's weight is 1 / (a bound on the largest eigenvalue of the
+// contact's 3x3 block of N in world rows, sum over its bodies of
+// m^-1 1 + [r]x I^-1 [r]x^T): checked against the block's eigenvalues,
+// computed here, for random anisotropic bodies (a bound; float rounding:
+// 1e-6), and equal to them for spheres, where the bound is exact.
+TEST(Engine, ApgdMetricBoundsEachContactBlock) {
+  std::uint64_t state = 5;
+  auto uniform = [&] {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return double(state >> 11) * 0x1.0p-53 * 2.0 - 1.0;
+  };
+  auto vec = [&] { return Vec3(uniform(), uniform(), uniform()); };
+  SolverBodies B;
+  B.resize(5);
+  for (std::size_t i = 0; i < 5; ++i) {
+    B.x[i] = 0.01 * vec();
+    B.inv_mass[i] = i == 4 ? 0.0 : 1e3 * (1.5 + uniform());
+    const Mat3 R = Quat::UnitRandom().toRotationMatrix();  // std::rand: fixed seed
+    const Vec3 d = i < 2 ? Vec3(Vec3::Constant(2e7)) : Vec3(1e7 * (Vec3::Constant(1.5) + vec()));
+    B.inv_inertia[i] = i == 4 ? Mat3::Zero() : Mat3(R * d.asDiagonal() * R.transpose());
+  }
+  Contacts c;
+  for (int k = 0; k < 20; ++k) {
+    const int a = k % 4, b = k % 3 == 0 ? 4 : (a + 1) % 4;
+    c.push(a, b, vec().normalized(), 0.01 * vec(), 0.0, 0.001, 0.5, 0.0, ContactKey{});
+  }
+  CcpProblem p;
+  p.assemble(c, B, {}, 1e-3, ContactSettings{});
+  auto part = [&](int body, const Vec3& r) -> Mat3 {
+    const auto u = std::size_t(body);
+    Mat3 rx;
+    rx << 0, -r.z(), r.y(), r.z(), 0, -r.x(), -r.y(), r.x(), 0;
+    return B.inv_mass[u] * Mat3::Identity() + rx * B.inv_inertia[u] * rx.transpose();
+  };
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    const int a = c.body_a[k], b = c.body_b[k];
+    const Mat3 block = part(a, c.point[k] - B.x[std::size_t(a)]) + part(b, c.point[k] - B.x[std::size_t(b)]);
+    const double lambda = Eigen::SelfAdjointEigenSolver<Mat3>(block).eigenvalues().maxCoeff();
+    const double bound = 1.0 / p.metric_weight(3 * k);
+    EXPECT_LE(lambda, bound * (1.0 + 1e-6)) << k;
+    if (a < 2 && (b < 2 || b == 4)) {  // spheres
+      EXPECT_NEAR(bound, lambda, 1e-6 * lambda) << k;
+    }
+    EXPECT_EQ(p.metric_weight(3 * k), p.metric_weight(3 * k + 2));
   }
 }
 

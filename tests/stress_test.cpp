@@ -31,6 +31,8 @@ using nlohmann::json;
 
 constexpr double kPenetrationBound = 0.05;  // of the radius
 constexpr double kEnergyGainBound = 0.01;   // of the peak kinetic energy
+constexpr double kOverlapWarning = 0.1;     // of the radius: the summary warns above it
+constexpr double kGravity = 9.81;           // m/s^2, every stress scene's
 
 struct StressCase {
   const char* name;
@@ -75,15 +77,20 @@ TEST_P(Stress, MeetsThePassCriteria) {
   EXPECT_LE(s["solver"]["max_wall_penetration_relative"].get<double>(), 1.0)
       << "a sphere's centre past a wall's surface";
   const double penetration = s["solver"]["max_penetration_relative"].get<double>();
-  if (c.penetration_reported && penetration > kPenetrationBound) {
-    EXPECT_NE(s["warnings"].dump().find("overlapped by up to"), std::string::npos);
-  } else {
+  if (!c.penetration_reported) {
     EXPECT_LE(penetration, kPenetrationBound);
+  } else if (penetration > kOverlapWarning) {
+    EXPECT_NE(s["warnings"].dump().find("overlapped by up to"), std::string::npos);
   }
   const json& e = s["energy"];
   EXPECT_EQ(e["balance"].get<std::string>(), c.passive ? "passive" : "n/a") << e["reason"];
   if (c.passive) {
-    const double push_out = 0.5 * c.pushed_out_kg * kRecoverySpeed * kRecoverySpeed /
+    // A particle left overlapped is pushed out at up to the recovery speed,
+    // and lifted back by up to its overlap: the potential energy its sinking
+    // took, which the balance had counted as dissipated.
+    const double depth = s["solver"]["max_penetration_m"].get<double>();
+    const double push_out = c.pushed_out_kg *
+                            (0.5 * kRecoverySpeed * kRecoverySpeed + kGravity * depth) /
                             e["peak_kinetic_J"].get<double>();
     EXPECT_LE(e["max_gain_relative"].get<double>(), kEnergyGainBound + push_out) << e;
   }
@@ -115,19 +122,19 @@ const StressCase kPassing[] = {
     {"impact_plate", "impact_plate.yaml", "", true, true},
     {"impact_mesh", "impact_mesh.yaml", "", true, true},
     // Mass ratio 1:1000 at the scenes' 500 iterations (the scene files say
-    // why), and the sphere at 100: on impact it sinks about 93 % of a
-    // radius into the layer, which the summary reports, and is pushed back
-    // out: a gain of 0.1 to 3.1 % of the peak kinetic energy, depending on
-    // the iteration count and the order of the solver's sums (90 to 120
-    // iterations, docs/accuracy.md), within 1 % plus the push-out's 6.3 %
-    // for the 4.2 g sphere. The steps that would throw it back up faster
-    // are scaled (World::make_safe).
+    // why), and the sphere at 100: on impact it sinks 66 % of a radius into
+    // the layer, which the summary reports, and is pushed back out: a gain
+    // of 12.6 % of the peak kinetic energy, within 1 % plus the push-out's
+    // 6.3 % (the 4.2 g sphere at 0.1 m/s) and 8.2 % (lifted 0.66 mm). The
+    // steps that would throw it back up faster are scaled
+    // (World::make_safe).
     {"mass_ratio_sphere", "mass_ratio_sphere.yaml", "", false, true},
     {"mass_ratio_sphere_100_iterations", "mass_ratio_sphere.yaml",
      "--set solver.max_iterations=100", true, true, 1e6 * 4.0 / 3.0 * M_PI * 1e-9},
     {"mass_ratio_plate", "mass_ratio_plate.yaml", "--set time.end=0.3s", false, true},
     // The reference machine at 10 ms, 20 times its step, for 0.1 s: grains
-    // overlap each other by up to 1.5 radii (reported), none is in the drum
+    // overlap each other by up to 27 % of a radius (1.5 radii before the
+    // solver's metric; reported), none is in the drum
     // by more than a radius (World::limit_spin keeps flakes from turning by
     // radians within a step; 2.2 radii, centres inside the drum, without
     // it). The full 2 s run (80 s on two threads, not in CI) passes as well,

@@ -71,9 +71,21 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   frame_.assign(padded / kLanes * kFrameBlock, 0.0f);
   lever_.assign(6 * padded + 1, 0.0f);
   bias_.assign(padded, 0.0);
+  metric_.assign(padded / kLanes * kMetricBlock, 0.0f);
   // World rows for scatter_bodies, and a spare: it loads each contact's
   // impulse as a four-number vector.
   impulse_.resize(3 * nc + rows_.size() + 1);
+  inverse_mass_.resize(kMassStride * B.inv_mass.size());
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(B.inv_mass.size()) > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(B.inv_mass.size()); ++s) {
+    const auto i = std::size_t(s);
+    const Mat3& I = B.inv_inertia[i];
+    float* m = &inverse_mass_[kMassStride * i];
+    // Last, a bound on I^-1's largest eigenvalue (Gershgorin), for the metric.
+    const double upper[] = {I(0, 0), I(0, 1), I(0, 2), I(1, 1), I(1, 2), I(2, 2), B.inv_mass[i],
+                            I.cwiseAbs().rowwise().sum().maxCoeff()};
+    for (std::size_t c = 0; c < kMassStride; ++c) m[c] = float(upper[c]);
+  }
   double diag_max = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : diag_max) if (std::ptrdiff_t(nc) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(nc); ++s) {
@@ -99,16 +111,10 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     const Vec3 nw = normal(k);  // the rounded row the kernel applies
     diag_max = std::max(diag_max, row_mass(B, a_[k], nw, lever_a(k).cross(nw)) +
                                       row_mass(B, b_[k], nw, lever_b(k).cross(nw)));
-  }
-  inverse_mass_.resize(kMassStride * B.inv_mass.size());
-#pragma omp parallel for schedule(static) if (std::ptrdiff_t(B.inv_mass.size()) > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(B.inv_mass.size()); ++s) {
-    const auto i = std::size_t(s);
-    const Mat3& I = B.inv_inertia[i];
-    float* m = &inverse_mass_[kMassStride * i];
-    const double upper[] = {I(0, 0), I(0, 1), I(0, 2), I(1, 1),
-                            I(1, 2), I(2, 2), B.inv_mass[i], 0.0};
-    for (std::size_t c = 0; c < kMassStride; ++c) m[c] = float(upper[c]);
+    const double bound = block_scale(a_[k], lever_a(k)) + block_scale(b_[k], lever_b(k));
+    float* mt = &metric_[k / kLanes * kMetricBlock + k % kLanes];
+    mt[0] = bound > 0.0 ? float(1.0 / bound) : 0.0f;
+    mt[kLanes] = float(bound);
   }
   // The gather loads a body's velocity as a four-number vector: a spare.
   dv_.resize(B.inv_mass.size() + 1);
@@ -120,6 +126,9 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     diag_max = std::max(diag_max, row_diag_[j]);
   }
   diag_max_ = diag_max > 0.0 ? diag_max : 1.0;
+  row_metric_.resize(rows_.size());
+  for (std::size_t j = 0; j < rows_.size(); ++j)
+    row_metric_[j] = 1.0 / (row_diag_[j] > 0.0 ? row_diag_[j] : diag_max_);
   adj_.build(a_, b_, B.inv_mass.size(),
              [&](std::int32_t i) { return B.inv_mass[std::size_t(i)] > 0.0; });
 }
@@ -359,6 +368,15 @@ struct FrameLanes {
   }
 }
 
+// One number per contact (lane = contact) spread over a block's 12 rows,
+// three to a contact, as load_rows finds them: [c0 c0 c0 c1] [c1 c1 c2 c2]
+// [c2 c3 c3 c3].
+[[gnu::always_inline]] inline void spread_lanes(d4 c, d4 out[3]) {
+  out[0] = __builtin_shufflevector(c, c, 0, 0, 0, 1);
+  out[1] = __builtin_shufflevector(c, c, 1, 1, 2, 2);
+  out[2] = __builtin_shufflevector(c, c, 2, 3, 3, 3);
+}
+
 // The rows 3 k0 .. 3 k0 + 11 of a block: pointers into the vectors for a
 // whole block, into zero-padded copies for the short last one (whose lanes
 // past the contacts then compute zeros).
@@ -402,7 +420,13 @@ struct TrialLanes {
 [[gnu::always_inline]] inline void trial_block(const double* px, const double* pold,
                                                const double* pgx, const double* pgold,
                                                CcpProblem::Momentum mo, double step,
-                                               const FrameLanes& F, double* p1, TrialLanes& sums) {
+                                               const FrameLanes& F, const float* metric,
+                                               double* p1, TrialLanes& sums) {
+  // The contacts' steps and the weights of |d|^2 (CcpProblem::metric_),
+  // spread over the rows: a row vector holds a contact's rows and the next's.
+  d4 st[3], wd[3];
+  spread_lanes(step * widen(metric), st);
+  spread_lanes(widen(metric + kVec), wd);
   // In registers throughout: the rows transposed to lanes and back.
   d4 y[3], gy[3], z[3];
   for (std::size_t j = 0; j < 3; ++j) {
@@ -412,7 +436,7 @@ struct TrialLanes {
       y[j] = mo.ca * y[j] - mo.cb * load(pold + 4 * j);
       gy[j] = mo.ca * gy[j] - mo.cb * load(pgold + 4 * j);
     }
-    z[j] = y[j] - step * gy[j];
+    z[j] = y[j] - st[j] * gy[j];
   }
   Lanes3 r = lanes_of(z);
   project_cone(F, r);
@@ -421,7 +445,7 @@ struct TrialLanes {
   for (std::size_t j = 0; j < 3; ++j) {
     store(p1 + 4 * j, x1[j]);
     const d4 v1 = x1[j], d = v1 - y[j];
-    sums.dd += d * d;
+    sums.dd += wd[j] * d * d;
     sums.d_gy += d * gy[j];
     sums.uphill += gy[j] * (v1 - load(px + 4 * j));
   }
@@ -510,11 +534,12 @@ template <class T>
 
 // A bilateral row's trial, as trial_block does a contact's.
 void trial_row(double x, double x_old, double gx, double g_old, CcpProblem::Momentum mo,
-               double step, double lo, double hi, double& x1, CcpProblem::TrialSums& sums) {
+               double step, double weight, double lo, double hi, double& x1,
+               CcpProblem::TrialSums& sums) {
   const double y = mo.cb != 0.0 ? mo.ca * x - mo.cb * x_old : x;
   const double gy = mo.cb != 0.0 ? mo.ca * gx - mo.cb * g_old : gx;
-  x1 = std::clamp(y - step * gy, lo, hi);
-  sums.dd += (x1 - y) * (x1 - y);
+  x1 = std::clamp(y - step * weight * gy, lo, hi);
+  sums.dd += (x1 - y) * (x1 - y) / weight;
   sums.dnd -= (x1 - y) * gy;
   sums.uphill += gy * (x1 - x);
 }
@@ -594,7 +619,7 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
       const double *pold = old ? blk.in(x_old, 2) : px, *pgold = old ? blk.in(g_old, 3) : pgx;
       double* p1 = blk.out(x1, 4);
       trial_block(px, pold, pgx, pgold, mo, step, load_frame(&frame_[k0 / kLanes * kFrameBlock]),
-                  p1, sums);
+                  &metric_[k0 / kLanes * kMetricBlock], p1, sums);
       blk.flush(x1, 4);
     });
     part = {lane_sum(sums.dd), -lane_sum(sums.d_gy), lane_sum(sums.uphill)};
@@ -602,8 +627,8 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
   TrialSums total = reduce_chunks<TrialSums>(nc, pass);
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const std::size_t i = 3 * nc + j;
-    trial_row(x[i], old ? x_old[i] : 0.0, gx[i], old ? g_old[i] : 0.0, mo, step, rows_[j].lo,
-              rows_[j].hi, x1[i], total);
+    trial_row(x[i], old ? x_old[i] : 0.0, gx[i], old ? g_old[i] : 0.0, mo, step, row_metric_[j],
+              rows_[j].lo, rows_[j].hi, x1[i], total);
   }
   return total;
 }
@@ -652,6 +677,25 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
     t.dnd += (x1[i] - y) * g1[i];
     t.res_sum += res * res;
   }
+}
+
+double CcpProblem::block_scale(int body, const Vec3& r) const {
+  // m^-1 1 + [r]x I^-1 [r]x^T <= (m^-1 + lambda_max(I^-1) |r|^2) 1, as
+  // [r]x's singular values are |r|, |r|, 0: exact for a sphere.
+  if (body < 0) return 0.0;
+  const float* record = &inverse_mass_[kMassStride * std::size_t(body)];
+  return double(record[6]) + double(record[7]) * r.squaredNorm();
+}
+
+double CcpProblem::metric_weight(std::size_t i) const {
+  const std::size_t nc = a_.size();
+  if (i >= 3 * nc) return row_metric_[i - 3 * nc];
+  const std::size_t k = i / 3;
+  return double(metric_[k / kLanes * kMetricBlock + k % kLanes]);
+}
+
+void CcpProblem::scale_by_metric(Span v) const {
+  for (std::size_t i = 0; i < v.size(); ++i) v[i] *= std::sqrt(metric_weight(i));
 }
 
 void CcpProblem::world_impulses(ConstSpan x, std::vector<Vec3>& out) const {

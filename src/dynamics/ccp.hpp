@@ -214,6 +214,12 @@ class CcpProblem {
   void to_local(ConstSpan P, Span x) const;
   // g = N P + r in world rows. P has a spare past its rows (SolverWorkspace).
   void world_gradient(ConstSpan P, Span g) const;
+  // APGD's metric (solve_apgd): row i's step weight, the same for a
+  // contact's three rows: 1 / (an upper bound on the largest eigenvalue of
+  // the contact's 3x3 block of N), 1 / N_ii for a bilateral row.
+  double metric_weight(std::size_t i) const;
+  // v's rows times the square roots of their metric weights.
+  void scale_by_metric(Span v) const;
 
   // APGD's iteration in two streaming passes over the contacts (and one
   // over the bodies), four contacts to a SIMD vector (solve_apgd), on world
@@ -226,13 +232,13 @@ class CcpProblem {
     double ca = 1.0, cb = 0.0;
   };
   // The sums an APGD iteration decides on, added in fixed chunks as
-  // reduce() adds them: dd = |d|^2 and dnd = d.(g1 - gy) with d = x1 - y,
-  // uphill = gy.(x1 - x), and the residual's.
+  // reduce() adds them: dd = |d|^2 in the metric's W^-1 and dnd =
+  // d.(g1 - gy) with d = x1 - y, uphill = gy.(x1 - x), and the residual's.
   struct TrialSums {
     double dd = 0, dnd = 0, uphill = 0, res_sum = 0;
     TrialSums& operator+=(const TrialSums& o);
   };
-  // The first: x1 = Π(y - step gy), and the sums but d.g1 and the
+  // The first: x1 = Π(y - step W gy), and the sums but d.g1 and the
   // residual's. x1 must not be x or x_old (a backtracking step makes y
   // again).
   TrialSums apgd_step(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx, ConstSpan g_old,
@@ -264,6 +270,9 @@ class CcpProblem {
   void gather_rows(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias,
                    Span y) const;
   double block_bound(std::size_t k) const;
+  // A bound on the largest eigenvalue of one body's part of a contact's
+  // block of N, at lever arm r (world rows).
+  double block_scale(int body, const Vec3& r) const;
   // Contact k's normal row v_n + b at velocities v, w.
   double row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const;
 
@@ -305,9 +314,15 @@ class CcpProblem {
   Vec3 lever_a(std::size_t k) const { return lever(k, 0); }
   Vec3 lever_b(std::size_t k) const { return lever(k, 1); }
   std::vector<double> bias_;
+  // APGD's metric, per block of four contacts: their step weights w, then
+  // the bounds 1 / w (apgd_step scales the step by w and |d|^2 by 1 / w:
+  // both loaded, no division).
+  static constexpr std::size_t kMetricBlock = 2 * kLanes;
+  AlignedVector<float> metric_;
+  std::vector<double> row_metric_;
   // Bodies as the bodies' pass reads them, one 32-byte record each: the
   // inverse inertia's upper triangle (00 01 02 11 12 22), the inverse mass,
-  // a spare; in float, a third of the 80 bytes of SolverBodies' double Mat3
+  // a bound on the inverse inertia's largest eigenvalue; in float, a third of the 80 bytes of SolverBodies' double Mat3
   // and mass, which were the pass's largest stream. scatter_bodies, and so
   // N, uses them alone, so N stays symmetric and positive; the wall guard
   // and PGS's own sweeps apply SolverBodies' doubles, which differ from
