@@ -695,7 +695,13 @@ double CcpProblem::metric_weight(std::size_t i) const {
 }
 
 void CcpProblem::scale_by_metric(Span v) const {
-  for (std::size_t i = 0; i < v.size(); ++i) v[i] *= std::sqrt(metric_weight(i));
+  const auto nc = std::ptrdiff_t(a_.size());
+#pragma omp parallel for schedule(static) if (nc > kParallelMin)
+  for (std::ptrdiff_t k = 0; k < nc; ++k) {
+    const double root = std::sqrt(metric_weight(3 * std::size_t(k)));
+    for (std::size_t c = 0; c < 3; ++c) v[3 * std::size_t(k) + c] *= root;
+  }
+  for (std::size_t i = 3 * a_.size(); i < v.size(); ++i) v[i] *= std::sqrt(metric_weight(i));
 }
 
 void CcpProblem::world_impulses(ConstSpan x, std::vector<Vec3>& out) const {
