@@ -169,6 +169,14 @@ void CcpProblem::velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>
   scatter(x, true, v, w);
 }
 
+void CcpProblem::row_velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>& w) const {
+  const SolverBodies& B = *bodies_;
+  // scatter_bodies adds v_free to a zero sum: v_free to the bit.
+  v.assign(B.v_free.begin(), B.v_free.end());
+  w.assign(B.w_free.begin(), B.w_free.end());
+  for (std::size_t j = 0; j < rows_.size(); ++j) apply_row(B, rows_[j], x[3 * a_.size() + j], v, w);
+}
+
 void CcpProblem::gradient(ConstSpan x, Span g) const {
   scatter(x, true, dv_, dw_);
   gather(dv_, dw_, true, g);

@@ -146,6 +146,9 @@ class CcpProblem {
   }
   // Final velocities v_free + M^-1 J^T x.
   void velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>& w) const;
+  // The same for x's bilateral rows alone (its contact rows taken as 0),
+  // with no pass over the contacts: the same bits as velocities() of that x.
+  void row_velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>& w) const;
 
   // Contact impulses as world vectors (normal + friction), for warm starts:
   // a world vector survives the rotation of the tangent frame between steps.

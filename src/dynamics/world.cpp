@@ -204,15 +204,23 @@ const StepStats& World::step() {
     problem_.warm_start(ccp_contacts.key, prev_impulses_, prev_gamma_, gamma_);
   else
     std::fill(gamma_.begin(), gamma_.end(), 0.0);
-  for (std::size_t k = 0; k < contacts_.size(); ++k) {
-    const double pen = -contacts_.gap[k];
-    stats.max_penetration = std::max(stats.max_penetration, pen);
-    stats.max_penetration_relative = std::max(stats.max_penetration_relative, pen / contacts_.radius[k]);
+  double pen_max = stats.max_penetration, rel_max = stats.max_penetration_relative,
+         wall_max = stats.max_wall_penetration_relative;
+  const auto nc = std::ptrdiff_t(contacts_.size());
+#pragma omp parallel for schedule(static) if (nc > kParallelMin) \
+    reduction(max : pen_max, rel_max, wall_max)
+  for (std::ptrdiff_t s = 0; s < nc; ++s) {
+    const auto k = std::size_t(s);
+    const double pen = -contacts_.gap[k], rel = pen / contacts_.radius[k];
+    pen_max = std::max(pen_max, pen);
+    rel_max = std::max(rel_max, rel);
     const auto a = std::size_t(contacts_.body_a[k]);
     if (a >= particles_.size() && m.bodies[a - particles_.size()].kind != BodyKind::Dynamic)
-      stats.max_wall_penetration_relative =
-          std::max(stats.max_wall_penetration_relative, pen / contacts_.radius[k]);
+      wall_max = std::max(wall_max, rel);
   }
+  stats.max_penetration = pen_max;
+  stats.max_penetration_relative = rel_max;
+  stats.max_wall_penetration_relative = wall_max;
   stats.seconds.assemble = seconds_since(t0);
 
   t0 = Clock::now();
@@ -274,11 +282,10 @@ void World::make_safe(StepStats& stats) {
   if (!stats.solver.converged) {
     // The line search runs over the contacts' rows only: joints and motors
     // keep their impulses.
-    const Span base = workspace_.take(5, rows), r = workspace_.take(6, rows);
-    std::copy(gamma_.begin(), gamma_.end(), base.begin());
-    std::fill(base.begin(), base.begin() + std::ptrdiff_t(contact_rows), 0.0);
-    problem_.gradient(base, r);    // at the joints' impulses alone
-    problem_.gradient_at(v, w, g);  // N x + r, from the velocities of x
+    const Span r = workspace_.take(6, rows);
+    problem_.row_velocities(gamma_, base_v_, base_w_);
+    problem_.gradient_at(base_v_, base_w_, r);  // at the joints' impulses alone
+    problem_.gradient_at(v, w, g);              // N x + r, from the velocities of x
     double rx = 0.0, xnx = 0.0;    // in row order: the same bits for any thread count
     for (std::size_t i = 0; i < contact_rows; ++i) {
       rx += r[i] * gamma_[i];

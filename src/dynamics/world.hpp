@@ -136,6 +136,7 @@ class World {
   ContactMemory prev_impulses_;
   std::vector<double> prev_gamma_;
   std::vector<Vec3> impulse_scratch_;
+  std::vector<Vec3> base_v_, base_w_;  // make_safe: the velocities of the joints' impulses
   DemContacts dem_;
   Particles reorder_scratch_;
   std::vector<std::uint32_t> order_;
