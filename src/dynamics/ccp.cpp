@@ -72,6 +72,7 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   lever_.assign(6 * padded + 1, 0.0f);
   bias_.assign(padded, 0.0);
   metric_.assign(padded / kLanes * kMetricBlock, 0.0f);
+  tangent_.resize(2 * nc);
   // World rows for scatter_bodies, and a spare: it loads each contact's
   // impulse as a four-number vector.
   impulse_.resize(3 * nc + rows_.size() + 1);
@@ -96,6 +97,7 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     FrameScalar* f = &frame_[k / kLanes * kFrameBlock + k % kLanes];
     for (int c = 0; c < 3; ++c) f[std::size_t(c) * kLanes] = FrameScalar(n[c]);
     f[3 * kLanes] = FrameScalar(c.friction[k]);
+    make_tangents(k);
     for (int c = 0; c < 3; ++c) {
       lever_[6 * k + std::size_t(c)] = FrameScalar(ra[c]);
       lever_[6 * k + 3 + std::size_t(c)] = FrameScalar(rb[c]);
@@ -763,14 +765,16 @@ Vec3 CcpProblem::world_impulse(std::size_t k, ConstSpan x) const {
 }
 
 CcpProblem::Frame CcpProblem::frame(std::size_t k) const {
+  return {normal(k), tangent_[2 * k], tangent_[2 * k + 1]};
+}
+
+void CcpProblem::make_tangents(std::size_t k) {
   // Duff et al., "Building an Orthonormal Basis, Revisited", JCGT 6(1),
   // 2017: branch-free, and no other vector than n goes in.
-  Frame F{normal(k), {}, {}};
-  const Vec3& n = F.n;
+  const Vec3 n = normal(k);
   const double sign = n.z() < 0.0 ? -1.0 : 1.0, a = -1.0 / (sign + n.z()), b = n.x() * n.y() * a;
-  F.t1 = {1.0 + sign * n.x() * n.x() * a, sign * b, -sign * n.x()};
-  F.t2 = {b, sign + n.y() * n.y() * a, -n.y()};
-  return F;
+  tangent_[2 * k] = {1.0 + sign * n.x() * n.x() * a, sign * b, -sign * n.x()};
+  tangent_[2 * k + 1] = {b, sign + n.y() * n.y() * a, -n.y()};
 }
 
 void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMemory& previous,

@@ -286,8 +286,8 @@ class CcpProblem {
   // normal, 3 the friction coefficient) of contact k at
   // frame_[k / kLanes * kFrameBlock + c * kLanes + k % kLanes], so the
   // kernel loads one component of four contacts at once, and a block of
-  // float is one 64-byte cache line. The tangents are not stored: the kernel
-  // needs none (world rows), the scalar code makes them (frame()).
+  // float is one 64-byte cache line. The kernel needs no tangents (world
+  // rows); the scalar code's are stored apart (tangent_).
   static constexpr std::size_t kLanes = 4, kFrameBlock = 4 * kLanes;
   AlignedVector<FrameScalar> frame_;
   // Lever arms contact by contact, a's then b's: lever_[6 k + 3 side + c].
@@ -308,6 +308,12 @@ class CcpProblem {
     Vec3 n, t1, t2;
   };
   Frame frame(std::size_t k) const;
+  // The tangents of contact k's frame, made from its stored normal once per
+  // step: the scalar passes (warm start, the changes of rows, the scatter
+  // and gather outside the kernel, the safeguards) took a frame about ten
+  // times a step, a division each.
+  void make_tangents(std::size_t k);
+  std::vector<Vec3> tangent_;
   // Contact k's rows of x (its frame's) as a world vector.
   Vec3 world_impulse(std::size_t k, ConstSpan x) const;
   Vec3 lever(std::size_t k, std::size_t side) const {
