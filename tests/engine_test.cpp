@@ -33,6 +33,15 @@ std::shared_ptr<Model> base_model(std::vector<double> frictions = {0.5}, double 
   return m;
 }
 
+// Uniform numbers in [-1, 1) from a 64-bit LCG: the same on every platform.
+struct Uniform {
+  std::uint64_t state;
+  double operator()() {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return double(state >> 11) * 0x1.0p-53 * 2.0 - 1.0;
+  }
+};
+
 // ---------------------------------------------------------------- free flight
 
 // Semi-implicit Euler: v_n = v0 + n h g, x_n = x0 + n h v0 + h^2 g n(n+1)/2.
@@ -575,11 +584,7 @@ TEST(Engine, SphereSlidesAcrossMeshEdgesWithoutBumps) {
 // orthogonal, for the friction cone K and its polar K° = {mu |t| <= -n}.
 // 1e5 random points over all four cases. Tolerance 1e-12 relative.
 TEST(Engine, ConeProjectionIsMoreauDecomposition) {
-  std::uint64_t state = 7;
-  auto uniform = [&] {
-    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
-    return double(state >> 11) * 0x1.0p-53 * 2.0 - 1.0;
-  };
+  Uniform uniform{7};
   for (int i = 0; i < 100000; ++i) {
     const double mu = i % 10 == 0 ? 0.0 : 1.5 * (uniform() + 1.0) / 2.0;
     const Vec3 x(uniform(), uniform(), uniform());
@@ -604,11 +609,7 @@ TEST(Engine, ConeProjectionIsMoreauDecomposition) {
 // float, so the frame is orthonormal to about 1e-7: the tolerance is 1e-6
 // of each quantity's scale. A wrong sign, term or case is of order 1.
 TEST(Engine, ApgdKernelMatchesPlainOperations) {
-  std::uint64_t state = 11;
-  auto uniform = [&] {
-    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
-    return double(state >> 11) * 0x1.0p-53 * 2.0 - 1.0;
-  };
+  Uniform uniform{11};
   auto vec = [&] { return Vec3(uniform(), uniform(), uniform()); };
   SolverBodies B;
   B.resize(4);
@@ -812,18 +813,14 @@ TEST(Engine, ApgdConvergesAlikeAcrossMassRatios) {
 // computed here, for random anisotropic bodies (a bound; float rounding:
 // 1e-6), and equal to them for spheres, where the bound is exact.
 TEST(Engine, ApgdMetricBoundsEachContactBlock) {
-  std::uint64_t state = 5;
-  auto uniform = [&] {
-    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
-    return double(state >> 11) * 0x1.0p-53 * 2.0 - 1.0;
-  };
+  Uniform uniform{5};
   auto vec = [&] { return Vec3(uniform(), uniform(), uniform()); };
   SolverBodies B;
   B.resize(5);
   for (std::size_t i = 0; i < 5; ++i) {
     B.x[i] = 0.01 * vec();
     B.inv_mass[i] = i == 4 ? 0.0 : 1e3 * (1.5 + uniform());
-    const Mat3 R = Quat::UnitRandom().toRotationMatrix();  // std::rand: fixed seed
+    const Mat3 R = Quat(uniform(), uniform(), uniform(), uniform()).normalized().toRotationMatrix();
     const Vec3 d = i < 2 ? Vec3(Vec3::Constant(2e7)) : Vec3(1e7 * (Vec3::Constant(1.5) + vec()));
     B.inv_inertia[i] = i == 4 ? Mat3::Zero() : Mat3(R * d.asDiagonal() * R.transpose());
   }
