@@ -792,7 +792,8 @@ TEST(Engine, SolversReportNonFiniteResidual) {
 TEST(Engine, ApgdConvergesAlikeAcrossMassRatios) {
   auto m = base_model();
   std::vector<Material> mats;
-  for (int i = 0; i < 5; ++i) mats.push_back({"m" + std::to_string(i), std::pow(10.0, 1 + i), 0.5, 0.0});
+  for (int i = 0; i < 5; ++i)
+    mats.push_back({"m" + std::to_string(i), std::pow(10.0, 1 + i), 0.5, 0.0});
   m->materials = MaterialTable(mats, {});
   m->bodies.push_back(test::ground_plane());
   m->solver.warm_start = false;
@@ -839,7 +840,8 @@ TEST(Engine, ApgdMetricBoundsEachContactBlock) {
   };
   for (std::size_t k = 0; k < c.size(); ++k) {
     const int a = c.body_a[k], b = c.body_b[k];
-    const Mat3 block = part(a, c.point[k] - B.x[std::size_t(a)]) + part(b, c.point[k] - B.x[std::size_t(b)]);
+    const Mat3 block =
+        part(a, c.point[k] - B.x[std::size_t(a)]) + part(b, c.point[k] - B.x[std::size_t(b)]);
     const double lambda = Eigen::SelfAdjointEigenSolver<Mat3>(block).eigenvalues().maxCoeff();
     const double bound = 1.0 / p.metric_weight(3 * k);
     EXPECT_LE(lambda, bound * (1.0 + 1e-6)) << k;

@@ -331,8 +331,9 @@ class CcpProblem {
   std::vector<double> row_metric_;
   // Bodies as the bodies' pass reads them, one 32-byte record each: the
   // inverse inertia's upper triangle (00 01 02 11 12 22), the inverse mass,
-  // a bound on the inverse inertia's largest eigenvalue; in float, a third of the 80 bytes of SolverBodies' double Mat3
-  // and mass, which were the pass's largest stream. scatter_bodies, and so
+  // a bound on the inverse inertia's largest eigenvalue (the metric's); in
+  // float, a third of the 80 bytes of SolverBodies' double Mat3 and mass,
+  // which were the pass's largest stream. scatter_bodies, and so
   // N, uses them alone, so N stays symmetric and positive; the wall guard
   // and PGS's own sweeps apply SolverBodies' doubles, which differ from
   // them by float's rounding.
