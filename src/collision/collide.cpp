@@ -26,30 +26,46 @@ Vec3 safe_direction(const Vec3& d, double len) {
   return len > 0.0 ? Vec3(d / len) : Vec3::UnitY();
 }
 
+// One pair's contacts before the manifold reduction, side by side: most
+// are dropped (a flake on the drum keeps 5 of 19), so they go to Contacts'
+// nine arrays only once kept.
+struct Candidate {
+  Vec3 normal, point;
+  double gap, radius;
+  ContactKey key;
+};
+
 void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double envelope,
-                   int a, int b, double mu, double e, const ContactKey& key, Contacts& out) {
+                   const ContactKey& key, std::vector<Candidate>& out) {
   const Vec3 d = cb - ca;
   const double len = d.norm();
   const double gap = len - ra - rb;
   if (gap >= envelope) return;
   const Vec3 n = safe_direction(d, len);
-  out.push(a, b, n, ca + n * (ra + 0.5 * gap), gap, std::min(ra, rb), mu, e, key);
+  out.push_back({n, ca + n * (ra + 0.5 * gap), gap, std::min(ra, rb), key});
 }
 
 // A flat face resting on another touches it with many of its spheres at
 // once (a flake lying on the drum: 19). A few spanning the face hold it as
-// well and cost far less, so per group of nearly parallel normals the
-// contacts from `first` on keep the deepest (it carries the overlap) and four
+// well and cost far less, so per group of nearly parallel normals a pair's
+// candidates keep the deepest (it carries the overlap) and four
 // that span the face, chosen by position only so that gap noise between
 // steps does not change them: the farthest from the group's centroid, the
 // farthest from that one, and the farthest on either side of their line
 // (manifold reduction, as Box2D and Jolt do it). A group with other normals
-// (a corner) keeps its own.
-void reduce_manifold(Contacts& c, std::size_t first) {
+// (a corner) keeps its own. The kept go to `out` in the candidates' order.
+void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b, double mu, double e,
+                     Contacts& out) {
   constexpr std::size_t kKeep = 5;
   constexpr double kSameNormal = 0.95;  // cos 18°
-  const std::size_t n = c.size() - first;
-  if (n <= kKeep) return;
+  const std::size_t n = c.size();
+  auto push = [&](const Candidate& k) {
+    out.push(body_a, body_b, k.normal, k.point, k.gap, k.radius, mu, e, k.key);
+  };
+  if (n <= kKeep) {
+    for (const Candidate& k : c) push(k);
+    return;
+  }
   static thread_local std::vector<int> group;
   static thread_local std::vector<std::uint8_t> keep;
   static thread_local std::vector<std::size_t> by_group, start, fill;
@@ -58,9 +74,9 @@ void reduce_manifold(Contacts& c, std::size_t first) {
   int groups = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (group[i] >= 0) continue;
-    const Vec3& ni = c.normal[first + i];
+    const Vec3& ni = c[i].normal;
     for (std::size_t j = i; j < n; ++j)
-      if (group[j] < 0 && ni.dot(c.normal[first + j]) > kSameNormal) group[j] = groups;
+      if (group[j] < 0 && ni.dot(c[j].normal) > kSameNormal) group[j] = groups;
     ++groups;
   }
   // The contacts by group, each group's in contact order (a counting sort):
@@ -71,15 +87,13 @@ void reduce_manifold(Contacts& c, std::size_t first) {
   for (std::size_t g = 0; g < std::size_t(groups); ++g) start[g + 1] += start[g];
   fill.assign(start.begin(), start.end() - 1);
   by_group.resize(n);
-  for (std::size_t i = 0; i < n; ++i) by_group[fill[std::size_t(group[i])]++] = first + i;
-  bool reduced = false;
+  for (std::size_t i = 0; i < n; ++i) by_group[fill[std::size_t(group[i])]++] = i;
   for (std::size_t g = 0; g < std::size_t(groups); ++g) {
     const std::span<const std::size_t> members(by_group.data() + start[g], start[g + 1] - start[g]);
     if (members.size() <= kKeep) {
-      for (std::size_t k : members) keep[k - first] = 1;
+      for (std::size_t k : members) keep[k] = 1;
       continue;
     }
-    reduced = true;
     // The highest score wins; ties go to the earlier contact.
     auto best = [&](auto score) {
       std::size_t arg = members[0];
@@ -89,18 +103,19 @@ void reduce_manifold(Contacts& c, std::size_t first) {
       return arg;
     };
     Vec3 centroid = Vec3::Zero();
-    for (std::size_t k : members) centroid += c.point[k];
+    for (std::size_t k : members) centroid += c[k].point;
     centroid /= double(members.size());
-    const std::size_t deepest = best([&](std::size_t k) { return -c.gap[k]; });
-    const std::size_t a = best([&](std::size_t k) { return (c.point[k] - centroid).squaredNorm(); });
-    const Vec3& pa = c.point[a];
-    const std::size_t b = best([&](std::size_t k) { return (c.point[k] - pa).squaredNorm(); });
-    const Vec3 side = c.normal[a].cross(c.point[b] - pa);
-    const std::size_t left = best([&](std::size_t k) { return (c.point[k] - pa).dot(side); });
-    const std::size_t right = best([&](std::size_t k) { return -(c.point[k] - pa).dot(side); });
-    for (std::size_t k : {deepest, a, b, left, right}) keep[k - first] = 1;
+    const std::size_t deepest = best([&](std::size_t k) { return -c[k].gap; });
+    const std::size_t a = best([&](std::size_t k) { return (c[k].point - centroid).squaredNorm(); });
+    const Vec3& pa = c[a].point;
+    const std::size_t b = best([&](std::size_t k) { return (c[k].point - pa).squaredNorm(); });
+    const Vec3 side = c[a].normal.cross(c[b].point - pa);
+    const std::size_t left = best([&](std::size_t k) { return (c[k].point - pa).dot(side); });
+    const std::size_t right = best([&](std::size_t k) { return -(c[k].point - pa).dot(side); });
+    for (std::size_t k : {deepest, a, b, left, right}) keep[k] = 1;
   }
-  if (reduced) c.compact_tail(first, keep);
+  for (std::size_t k = 0; k < n; ++k)
+    if (keep[k]) push(c[k]);
 }
 
 template <class Fill>
@@ -189,6 +204,7 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
   broadphase_seconds_ = seconds_since(t0);
   const auto& mat = model.materials;
   run_chunked(pairs_.size(), chunks_, out, [&](std::size_t begin, std::size_t end, Contacts& part) {
+    static thread_local std::vector<Candidate> candidates;  // kept across steps
     for (std::size_t k = begin; k < end; ++k) {
       // A before B by id, not index: particles move in the arrays (removal,
       // spatial reorder), and the key must stay the same for the warm start
@@ -202,7 +218,7 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
       const double e = mat.restitution(p.material[ui], p.material[uj]);
       const double envelope = envelope_[ui] + envelope_[uj];
       const double sci = p.scale[ui], scj = p.scale[uj];
-      const std::size_t first = part.size();
+      candidates.clear();
       const Vec3* centre_i = &sphere_centre_[sphere_first_[ui]];
       const Vec3* centre_j = &sphere_centre_[sphere_first_[uj]];
       const double reach_j = sj.bounding_radius * scj + envelope;
@@ -214,11 +230,10 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
         for (std::size_t b = 0; b < sj.centers.size(); ++b) {
           const Vec3& cb = centre_j[b];
           const ContactKey key{p.id[ui], p.id[uj], std::uint32_t(a), std::uint32_t(b)};
-          sphere_sphere(ca, sci * si.radii[a], cb, scj * sj.radii[b], envelope, i, j, mu, e, key,
-                        part);
+          sphere_sphere(ca, sci * si.radii[a], cb, scj * sj.radii[b], envelope, key, candidates);
         }
       }
-      reduce_manifold(part, first);
+      reduce_manifold(candidates, i, j, mu, e, part);
     }
   });
 }
@@ -242,6 +257,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   run_chunked(p.size(), chunks_, out, [&](std::size_t begin, std::size_t end, Contacts& part) {
     // Per thread and kept across steps: no allocation per chunk.
     static thread_local std::vector<geo::SurfaceHit> hits;
+    static thread_local std::vector<Candidate> candidates;
     for (std::size_t i = begin; i < end; ++i) {
       // Cull by the particle's bounding sphere in the body frame.
       const Vec3 local_centre = pose.inverse_apply(p.position[i]);
@@ -249,7 +265,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
       const ParticleShape& s = model.shapes[std::size_t(p.shape[i])];
       const double mu = mat.friction(rb.material, p.material[i]);
       const double e = mat.restitution(rb.material, p.material[i]);
-      const std::size_t first = part.size();
+      candidates.clear();
       for (std::size_t k = 0; k < s.centers.size(); ++k) {
         const Vec3& c = sphere_centre_[sphere_first_[i] + k];
         const double r = p.scale[i] * s.radii[k];
@@ -265,10 +281,10 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
           if (gap >= envelope_[i] + std::max(0.0, v_surface.dot(n)) * model.step) continue;
           const ContactKey key{kBodyTag | std::uint64_t(body), p.id[i], hit.feature,
                                std::uint32_t(k)};
-          part.push(solver_index, int(i), n, c - n * (r + 0.5 * gap), gap, r, mu, e, key);
+          candidates.push_back({n, c - n * (r + 0.5 * gap), gap, r, key});
         }
       }
-      reduce_manifold(part, first);
+      reduce_manifold(candidates, solver_index, int(i), mu, e, part);
     }
   });
 }

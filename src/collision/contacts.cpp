@@ -49,31 +49,6 @@ void Contacts::append(const Contacts& o) {
   extend(key, o.key);
 }
 
-void Contacts::compact_tail(std::size_t first, const std::vector<std::uint8_t>& keep) {
-  // Without a branch per entry: which are kept follows no pattern (a flake
-  // on the drum keeps 5 of its 19 contacts), and the mispredicted branches
-  // made this 2.4 % of a ces_pcb run. Each entry is written where the next
-  // kept one goes (never past the one being read) and the cursor moves on
-  // only if it is kept.
-  auto squeeze = [&](auto& v) {
-    std::size_t to = first;
-    for (std::size_t k = 0; k < keep.size(); ++k) {
-      v[to] = v[first + k];
-      to += keep[k] ? 1 : 0;
-    }
-    v.resize(to);
-  };
-  squeeze(body_a);
-  squeeze(body_b);
-  squeeze(normal);
-  squeeze(point);
-  squeeze(gap);
-  squeeze(radius);
-  squeeze(friction);
-  squeeze(restitution);
-  squeeze(key);
-}
-
 namespace {
 // splitmix64's finaliser: every input bit moves every output bit.
 std::uint64_t mix(std::uint64_t x) {

@@ -39,8 +39,6 @@ struct Contacts {
   void push(int a, int b, const Vec3& n, const Vec3& p, double g, double r,
             double mu, double e, const ContactKey& k);
   void append(const Contacts& other);
-  // Keeps entries first + k for which keep[k], in order, and drops the rest.
-  void compact_tail(std::size_t first, const std::vector<std::uint8_t>& keep);
 };
 
 // A vector per contact, kept from one step to the next and found by key:
