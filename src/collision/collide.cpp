@@ -106,7 +106,8 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b, do
     for (std::size_t k : members) centroid += c[k].point;
     centroid /= double(members.size());
     const std::size_t deepest = best([&](std::size_t k) { return -c[k].gap; });
-    const std::size_t a = best([&](std::size_t k) { return (c[k].point - centroid).squaredNorm(); });
+    const std::size_t a =
+        best([&](std::size_t k) { return (c[k].point - centroid).squaredNorm(); });
     const Vec3& pa = c[a].point;
     const std::size_t b = best([&](std::size_t k) { return (c[k].point - pa).squaredNorm(); });
     const Vec3 side = c[a].normal.cross(c[b].point - pa);
