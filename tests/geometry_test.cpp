@@ -583,18 +583,21 @@ TEST(GeometryMesh, DegenerateTrianglesAreIgnoredAndBadIndicesRejected) {
 // The grid broadphase against every pair tested directly, on a random cloud
 // of mixed radii (so cells hold several particles and pairs cross cell
 // faces, edges and corners), part of it below the grid's origin: the same
-// pairs, in (i, j) order. Twice, so a second call reuses the buffers.
+// pairs, in (i, j) order. Three times, so later calls reuse the buffers;
+// the third cloud is two clusters 1 m apart, in alternate particles, so the
+// sweep's cursors jump across the empty space between them.
 TEST(GridBroadphase, FindsExactlyTheOverlappingPairsInOrder) {
   using ces::GridBroadphase, ces::Vec3;
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> pos(-0.02, 0.03), rad(0.0005, 0.002);
   GridBroadphase grid;
-  for (int round = 0; round < 2; ++round) {
-    const std::size_t n = round == 0 ? 3000 : 1500;
+  for (int round = 0; round < 3; ++round) {
+    const std::size_t n = round == 1 ? 1500 : 3000;
     std::vector<Vec3> c(n);
     std::vector<double> r(n);
     for (std::size_t i = 0; i < n; ++i) {
       c[i] = Vec3(pos(rng), pos(rng), pos(rng));
+      if (round == 2 && i % 2 == 1) c[i] += Vec3(1.0, -1.0, 0.5);
       r[i] = rad(rng);
     }
     std::vector<std::pair<std::int32_t, std::int32_t>> found, expected;

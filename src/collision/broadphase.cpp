@@ -1,7 +1,10 @@
 #include "collision/broadphase.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+
+#include "common/parallel.hpp"
 
 namespace ces {
 namespace {
@@ -9,7 +12,7 @@ namespace {
 constexpr int kCellBits = 21;
 constexpr std::int64_t kCellBias = std::int64_t{1} << (kCellBits - 1);
 constexpr std::int64_t kCellMax = (std::int64_t{1} << kCellBits) - 1;
-constexpr std::size_t kChunk = 256;  // fixed, so output order never depends on threads
+constexpr std::size_t kChunk = 256;  // sorted entries per task
 
 std::int64_t cell_coord(double x, double inv_cell) {
   const double c = std::floor(x * inv_cell);
@@ -35,51 +38,93 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
   const double inv_cell = 1.0 / (2.0 * max_radius);
 
   entries_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec3& c = centers[i];
-    entries_[i] = {pack(cell_coord(c.x(), inv_cell), cell_coord(c.y(), inv_cell),
-                        cell_coord(c.z(), inv_cell)),
-                   std::int32_t(i)};
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(n); ++s) {
+    const Vec3& c = centers[std::size_t(s)];
+    entries_[std::size_t(s)] = {pack(cell_coord(c.x(), inv_cell), cell_coord(c.y(), inv_cell),
+                                     cell_coord(c.z(), inv_cell)),
+                                std::int32_t(s)};
   }
   std::sort(entries_.begin(), entries_.end(), [](const Entry& a, const Entry& b) {
     return a.cell != b.cell ? a.cell < b.cell : a.index < b.index;
   });
 
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
-  chunk_pairs_.resize(chunks);
+  if (chunk_partners_.size() < chunks) chunk_partners_.resize(chunks);  // keeps capacities
+  runs_.resize(n);
 #pragma omp parallel for schedule(static) if (chunks > 1)
-  for (std::size_t ch = 0; ch < chunks; ++ch) {
-    auto& out = chunk_pairs_[ch];
-    out.clear();
-    const std::size_t end = std::min(n, (ch + 1) * kChunk);
-    for (std::size_t i = ch * kChunk; i < end; ++i) {
-      const Vec3& c = centers[i];
-      const std::int64_t cx = cell_coord(c.x(), inv_cell), cy = cell_coord(c.y(), inv_cell),
-                         cz = cell_coord(c.z(), inv_cell);
-      const std::size_t first = out.size();
-      // z is the key's lowest field, so the three cells z - 1 .. z + 1 of a
-      // column (x, y) are one run of the sorted entries: one search a column.
-      const std::int64_t z_lo = std::max<std::int64_t>(cz - 1, 0);
-      const std::int64_t z_hi = std::min<std::int64_t>(cz + 1, kCellMax);
-      for (std::int64_t dx = -1; dx <= 1; ++dx)
-        for (std::int64_t dy = -1; dy <= 1; ++dy) {
-          const std::int64_t x = cx + dx, y = cy + dy;
-          if (x < 0 || y < 0 || x > kCellMax || y > kCellMax) continue;
-          const std::uint64_t lo = pack(x, y, z_lo), hi = pack(x, y, z_hi);
-          auto it = std::lower_bound(entries_.begin(), entries_.end(), lo,
-                                     [](const Entry& e, std::uint64_t k) { return e.cell < k; });
-          for (; it != entries_.end() && it->cell <= hi; ++it) {
-            const std::int32_t j = it->index;
-            if (std::size_t(j) <= i) continue;
-            const double reach = radii[i] + radii[std::size_t(j)];
-            if ((centers[std::size_t(j)] - c).squaredNorm() < reach * reach)
-              out.emplace_back(std::int32_t(i), j);
-          }
-        }
-      std::sort(out.begin() + std::ptrdiff_t(first), out.end());
-    }
+  for (std::size_t ch = 0; ch < chunks; ++ch)
+    sweep(ch, std::min(n, (ch + 1) * kChunk), centers, radii);
+
+  // Each particle's run in index order: the pairs come out sorted by (i, j)
+  // whatever the chunks and threads.
+  offsets_.resize(n + 1);
+  offsets_[0] = 0;
+  for (std::size_t i = 0; i < n; ++i) offsets_[i + 1] = offsets_[i] + runs_[i].count;
+  pairs.resize(offsets_[n]);
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(n); ++s) {
+    const Run& run = runs_[std::size_t(s)];
+    const std::int32_t* partner = &chunk_partners_[run.chunk][run.begin];
+    auto* out = &pairs[offsets_[std::size_t(s)]];
+    for (std::uint32_t k = 0; k < run.count; ++k) out[k] = {std::int32_t(s), partner[k]};
   }
-  for (const auto& part : chunk_pairs_) pairs.insert(pairs.end(), part.begin(), part.end());
+}
+
+// The entries of chunk ch in sorted order, each against the nine columns
+// (x, y) around its cell: z is the key's lowest field, so the cells z - 1 ..
+// z + 1 of a column are one run of the sorted entries. A column's first
+// cell, shifted by a fixed (dx, dy), grows with the entry's key, so nine
+// cursors only move forward: no search per entry (nine binary searches of
+// all entries each, before, took most of the broadphase).
+void GridBroadphase::sweep(std::size_t ch, std::size_t end, const std::vector<Vec3>& centers,
+                           const std::vector<double>& radii) {
+  constexpr std::size_t kUnset = ~std::size_t{0};
+  constexpr std::size_t kWalk = 8;  // cursor steps before it searches instead
+  const std::size_t n = entries_.size();
+  auto& partners = chunk_partners_[ch];
+  partners.clear();
+  std::array<std::size_t, 9> cursor;
+  cursor.fill(kUnset);
+  auto seek = [&](std::size_t& c, std::uint64_t key) {
+    const auto below = [](const Entry& e, std::uint64_t k) { return e.cell < k; };
+    if (c == kUnset) {
+      c = std::size_t(std::lower_bound(entries_.begin(), entries_.end(), key, below) -
+                      entries_.begin());
+      return;
+    }
+    for (std::size_t step = 0; step < kWalk; ++step, ++c)
+      if (c == n || entries_[c].cell >= key) return;
+    c = std::size_t(std::lower_bound(entries_.begin() + std::ptrdiff_t(c), entries_.end(), key,
+                                     below) -
+                    entries_.begin());
+  };
+  constexpr std::uint64_t kMask = (std::uint64_t{1} << kCellBits) - 1;
+  for (std::size_t s = ch * kChunk; s < end; ++s) {
+    const Entry& e = entries_[s];
+    const auto i = std::size_t(e.index);
+    const auto cx = std::int64_t(e.cell >> (2 * kCellBits));
+    const auto cy = std::int64_t((e.cell >> kCellBits) & kMask);
+    const auto cz = std::int64_t(e.cell & kMask);
+    const std::int64_t z_lo = std::max<std::int64_t>(cz - 1, 0);
+    const std::int64_t z_hi = std::min<std::int64_t>(cz + 1, kCellMax);
+    const std::size_t first = partners.size();
+    for (std::size_t col = 0; col < 9; ++col) {
+      const std::int64_t x = cx + std::int64_t(col / 3) - 1, y = cy + std::int64_t(col % 3) - 1;
+      if (x < 0 || y < 0 || x > kCellMax || y > kCellMax) continue;
+      const std::uint64_t hi = pack(x, y, z_hi);
+      seek(cursor[col], pack(x, y, z_lo));
+      for (std::size_t t = cursor[col]; t < n && entries_[t].cell <= hi; ++t) {
+        const std::int32_t j = entries_[t].index;
+        if (std::size_t(j) <= i) continue;
+        const double reach = radii[i] + radii[std::size_t(j)];
+        if ((centers[std::size_t(j)] - centers[i]).squaredNorm() < reach * reach)
+          partners.push_back(j);
+      }
+    }
+    std::sort(partners.begin() + std::ptrdiff_t(first), partners.end());
+    runs_[i] = {std::uint32_t(ch), std::uint32_t(first), std::uint32_t(partners.size() - first)};
+  }
 }
 
 }  // namespace ces

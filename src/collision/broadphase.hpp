@@ -22,8 +22,17 @@ class GridBroadphase {
     std::uint64_t cell;
     std::int32_t index;
   };
-  std::vector<Entry> entries_;
-  std::vector<std::vector<std::pair<std::int32_t, std::int32_t>>> chunk_pairs_;
+  // Where particle i's partners j > i are: chunk_partners_[chunk][begin ..
+  // begin + count), sorted.
+  struct Run {
+    std::uint32_t chunk, begin, count;
+  };
+  void sweep(std::size_t chunk, std::size_t end, const std::vector<Vec3>& centers,
+             const std::vector<double>& radii);
+  std::vector<Entry> entries_;  // by cell, then index
+  std::vector<std::vector<std::int32_t>> chunk_partners_;
+  std::vector<Run> runs_;
+  std::vector<std::size_t> offsets_;
 };
 
 }  // namespace ces
