@@ -30,23 +30,35 @@ void Contacts::push(int a, int b, const Vec3& n, const Vec3& p, double g, double
   key.push_back(k);
 }
 
+void Contacts::resize(std::size_t n) {
+  body_a.resize(n);
+  body_b.resize(n);
+  normal.resize(n);
+  point.resize(n);
+  gap.resize(n);
+  radius.resize(n);
+  friction.resize(n);
+  restitution.resize(n);
+  key.resize(n);
+}
+
 namespace {
 template <class T>
-void extend(std::vector<T>& to, const std::vector<T>& from) {
-  to.insert(to.end(), from.begin(), from.end());
+void put(std::vector<T>& to, std::size_t at, const std::vector<T>& from) {
+  std::copy(from.begin(), from.end(), to.begin() + std::ptrdiff_t(at));
 }
 }  // namespace
 
-void Contacts::append(const Contacts& o) {
-  extend(body_a, o.body_a);
-  extend(body_b, o.body_b);
-  extend(normal, o.normal);
-  extend(point, o.point);
-  extend(gap, o.gap);
-  extend(radius, o.radius);
-  extend(friction, o.friction);
-  extend(restitution, o.restitution);
-  extend(key, o.key);
+void Contacts::copy_at(std::size_t at, const Contacts& o) {
+  put(body_a, at, o.body_a);
+  put(body_b, at, o.body_b);
+  put(normal, at, o.normal);
+  put(point, at, o.point);
+  put(gap, at, o.gap);
+  put(radius, at, o.radius);
+  put(friction, at, o.friction);
+  put(restitution, at, o.restitution);
+  put(key, at, o.key);
 }
 
 namespace {

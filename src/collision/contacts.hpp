@@ -38,7 +38,9 @@ struct Contacts {
   void clear();
   void push(int a, int b, const Vec3& n, const Vec3& p, double g, double r,
             double mu, double e, const ContactKey& k);
-  void append(const Contacts& other);
+  void resize(std::size_t n);
+  // Writes `other`'s contacts at [at, at + other.size()), which must exist.
+  void copy_at(std::size_t at, const Contacts& other);
 };
 
 // A vector per contact, kept from one step to the next and found by key:
