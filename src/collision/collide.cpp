@@ -69,17 +69,21 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b, do
   }
   static thread_local std::vector<int> group;
   static thread_local std::vector<std::uint8_t> keep;
-  static thread_local std::vector<std::size_t> by_group, start, fill;
-  group.assign(n, -1);
+  static thread_local std::vector<std::size_t> by_group, start, fill, leader;
+  group.resize(n);
   keep.assign(n, 0);
-  int groups = 0;
+  // A candidate joins the first group (in the order they were opened) whose
+  // first member's normal is close to its own, or opens one. Most join the
+  // first: a flake on the drum makes one group, a pair of flakes two or three.
+  leader.clear();
   for (std::size_t i = 0; i < n; ++i) {
-    if (group[i] >= 0) continue;
     const Vec3& ni = c[i].normal;
-    for (std::size_t j = i; j < n; ++j)
-      if (group[j] < 0 && ni.dot(c[j].normal) > kSameNormal) group[j] = groups;
-    ++groups;
+    std::size_t g = 0;
+    while (g < leader.size() && ni.dot(c[leader[g]].normal) <= kSameNormal) ++g;
+    if (g == leader.size()) leader.push_back(i);
+    group[i] = int(g);
   }
+  const auto groups = int(leader.size());
   // The contacts by group, each group's in contact order (a counting sort):
   // one pass, where scanning every contact for each group cost as much as
   // the grouping.
@@ -277,10 +281,11 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   // How far any point of the body moves this step, for the cull: it turns
   // about its frame's origin, reaching at most the farthest corner of its
   // bounds. (A plane's are infinite: only a turning body adds the term.)
-  const double w_norm = w_body.norm();
+  const double w_norm = w_body.norm(), v_norm = v_body.norm();
   const double swing =
       w_norm > 0.0 ? w_norm * bounds.min.cwiseAbs().cwiseMax(bounds.max.cwiseAbs()).norm() : 0.0;
-  const double body_travel = (v_body.norm() + swing) * model.step;
+  const double body_travel = (v_norm + swing) * model.step;
+  auto local = [&](const Vec3& x) -> Vec3 { return pose.inverse_apply(x); };
   const int solver_index = int(p.size()) + body;
   const auto& mat = model.materials;
   run_chunked(p.size(), chunks_, out, [&](std::size_t begin, std::size_t end, Contacts& part) {
@@ -289,9 +294,21 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
     static thread_local std::vector<Candidate> candidates;
     for (std::size_t i = begin; i < end; ++i) {
       // Cull by the particle's bounding sphere in the body frame.
-      const Vec3 local_centre = pose.inverse_apply(p.position[i]);
+      const Vec3 local_centre = local(p.position[i]);
       if (!bounds.inflated(reach_[i] + body_travel).overlaps({local_centre, local_centre})) continue;
       const ParticleShape& s = model.shapes[std::size_t(p.shape[i])];
+      // A cluster (a flake: 19 spheres) far from the surface is passed over
+      // on one query of its centre. Distances to a surface are 1-Lipschitz,
+      // so no sphere within the bounding radius can then come closer than
+      // its own query's reach (below): the same hits, at 1 query, not 19.
+      if (s.centers.size() > 1) {
+        const double bounding = p.scale[i] * s.bounding_radius * (1.0 + 1e-9);
+        const double arm = (p.position[i] - pose.position).norm() + bounding;
+        const double surface_travel = (v_norm + w_norm * arm) * model.step;
+        hits.clear();
+        geo::query(rb.shape, local_centre, bounding + envelope_[i] + surface_travel, hits);
+        if (hits.empty()) continue;
+      }
       const double mu = mat.friction(rb.material, p.material[i]);
       const double e = mat.restitution(rb.material, p.material[i]);
       candidates.clear();
@@ -303,7 +320,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
         const Vec3 v_surface = v_body + w_body.cross(c - pose.position);
         const double surface_travel = v_surface.norm() * model.step;
         hits.clear();
-        geo::query(rb.shape, pose.inverse_apply(c), r + envelope_[i] + surface_travel, hits);
+        geo::query(rb.shape, local(c), r + envelope_[i] + surface_travel, hits);
         for (const geo::SurfaceHit& hit : hits) {
           const double gap = hit.distance - r;
           const Vec3 n = pose.orientation * hit.normal;
