@@ -285,7 +285,11 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   const double swing =
       w_norm > 0.0 ? w_norm * bounds.min.cwiseAbs().cwiseMax(bounds.max.cwiseAbs()).norm() : 0.0;
   const double body_travel = (v_norm + swing) * model.step;
-  auto local = [&](const Vec3& x) -> Vec3 { return pose.inverse_apply(x); };
+  // Matrices, not the quaternion, for the many points taken to the body's
+  // frame and normals taken back.
+  const Mat3 to_local = pose.orientation.conjugate().toRotationMatrix();
+  const Mat3 to_world = pose.orientation.toRotationMatrix();
+  auto local = [&](const Vec3& x) -> Vec3 { return to_local * (x - pose.position); };
   const int solver_index = int(p.size()) + body;
   const auto& mat = model.materials;
   run_chunked(p.size(), chunks_, out, [&](std::size_t begin, std::size_t end, Contacts& part) {
@@ -323,7 +327,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
         geo::query(rb.shape, local(c), r + envelope_[i] + surface_travel, hits);
         for (const geo::SurfaceHit& hit : hits) {
           const double gap = hit.distance - r;
-          const Vec3 n = pose.orientation * hit.normal;
+          const Vec3 n = to_world * hit.normal;
           if (gap >= envelope_[i] + std::max(0.0, v_surface.dot(n)) * model.step) continue;
           const ContactKey key{kBodyTag | std::uint64_t(body), p.id[i], hit.feature,
                                std::uint32_t(k)};
