@@ -675,7 +675,9 @@ TEST(ContactMemory, FindsWhatWasStoredAndNothingElse) {
       EXPECT_EQ(memory.find(key, cursor), nullptr);
       ++absent;
     }
-    if (!earlier.empty()) EXPECT_GT(absent, 100u);
+    if (!earlier.empty()) {
+      EXPECT_GT(absent, 100u);
+    }
     earlier.clear();
     for (const auto& entry : expected) earlier.push_back(entry.first);
   }
