@@ -133,7 +133,8 @@ void raise_to(double& target, double value) {
 }
 
 template <class Fill>
-void run_chunked(std::size_t n, std::vector<Contacts>& chunks, Contacts& out, Fill fill) {
+void run_chunked(std::size_t n, std::vector<Contacts>& chunks, Contacts& out, std::size_t& used,
+                 Fill fill) {
   const std::size_t count = (n + kChunk - 1) / kChunk;
   // Never shrink: the buffers keep their capacity from step to step.
   if (chunks.size() < count) chunks.resize(count);
@@ -147,18 +148,21 @@ void run_chunked(std::size_t n, std::vector<Contacts>& chunks, Contacts& out, Fi
     chunks[ch].clear();
     fill(ch * kChunk, std::min(n, (ch + 1) * kChunk), chunks[ch]);
   }
-  // Copied into place in parallel: 112 bytes a contact, on one thread the
-  // largest serial part of the stage.
+  // Copied into place in parallel at `used`: 112 bytes a contact, on one
+  // thread the largest serial part of the stage. `out` keeps the last
+  // step's length until the stage ends (Collider::collide), so it is
+  // zero-filled only where this step has more contacts, not rewritten.
   // (Named through a reference: in the parallel loop the thread_local
   // itself would be each worker's own.)
   static thread_local std::vector<std::size_t> offsets;
   std::vector<std::size_t>& at = offsets;
   at.resize(count + 1);
-  at[0] = out.size();
+  at[0] = used;
   for (std::size_t ch = 0; ch < count; ++ch) at[ch + 1] = at[ch] + chunks[ch].size();
-  out.resize(at[count]);
+  if (out.size() < at[count]) out.resize(at[count]);
 #pragma omp parallel for schedule(static) if (count > 1)
   for (std::size_t ch = 0; ch < count; ++ch) out.copy_at(at[ch], chunks[ch]);
+  used = at[count];
 }
 
 }  // namespace
@@ -166,7 +170,7 @@ void run_chunked(std::size_t n, std::vector<Contacts>& chunks, Contacts& out, Fi
 void Collider::collide(const Model& model, const Particles& p, const Bodies& bodies,
                        Contacts& out) {
   const auto t0 = Clock::now();
-  out.clear();
+  used_ = 0;  // out is cut to this at the end; see run_chunked
   const std::size_t n = p.size();
   const double h = model.step;
   centers_.resize(n);
@@ -216,7 +220,7 @@ void Collider::collide(const Model& model, const Particles& p, const Bodies& bod
   // speed times h, for each pair that is a contact this step. (Chains can
   // pass on more; the wall guard, World::step, covers the contacts found.)
   // In parallel: a maximum is the same in any order.
-  const auto particle_contacts = std::ptrdiff_t(out.size());
+  const auto particle_contacts = std::ptrdiff_t(used_);
 #pragma omp parallel for schedule(static) if (particle_contacts > kParallelMin)
   for (std::ptrdiff_t k = 0; k < particle_contacts; ++k) {
     const auto i = std::size_t(out.body_a[std::size_t(k)]);
@@ -233,6 +237,7 @@ void Collider::collide(const Model& model, const Particles& p, const Bodies& bod
     reach_[std::size_t(i)] += kick_[std::size_t(i)];
   }
   for (std::size_t b = 0; b < model.bodies.size(); ++b) body_contacts(model, p, bodies, int(b), out);
+  out.resize(used_);
   narrowphase_seconds_ = seconds_since(t0) - broadphase_seconds_;
 }
 
@@ -241,7 +246,7 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
   grid_.find_pairs(centers_, reach_, pairs_);
   broadphase_seconds_ = seconds_since(t0);
   const auto& mat = model.materials;
-  run_chunked(pairs_.size(), chunks_, out, [&](std::size_t begin, std::size_t end, Contacts& part) {
+  run_chunked(pairs_.size(), chunks_, out, used_, [&](std::size_t begin, std::size_t end, Contacts& part) {
     static thread_local std::vector<Candidate> candidates;  // kept across steps
     for (std::size_t k = begin; k < end; ++k) {
       // A before B by id, not index: particles move in the arrays (removal,
@@ -297,7 +302,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   auto local = [&](const Vec3& x) -> Vec3 { return to_local * (x - pose.position); };
   const int solver_index = int(p.size()) + body;
   const auto& mat = model.materials;
-  run_chunked(p.size(), chunks_, out, [&](std::size_t begin, std::size_t end, Contacts& part) {
+  run_chunked(p.size(), chunks_, out, used_, [&](std::size_t begin, std::size_t end, Contacts& part) {
     // Per thread and kept across steps: no allocation per chunk.
     static thread_local std::vector<geo::SurfaceHit> hits;
     static thread_local std::vector<Candidate> candidates;

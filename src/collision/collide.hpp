@@ -32,6 +32,7 @@ class Collider {
   std::vector<double> kick_;  // what impacts with neighbours can add to the travel (m)
   std::vector<std::pair<std::int32_t, std::int32_t>> pairs_;
   std::vector<Contacts> chunks_;
+  std::size_t used_ = 0;  // contacts written to the output so far this step
   GridBroadphase grid_;
 };
 
