@@ -107,7 +107,7 @@ struct SolveStats {
 // keeps its capacity), so a run stops allocating once its contact count
 // peaks. Each solver names the buffers it takes by what it keeps in them.
 struct SolverWorkspace {
-  std::array<std::vector<double>, 8> row;  // vectors over the CCP's rows
+  std::array<AlignedVector<double>, 8> row;  // vectors over the CCP's rows
   std::vector<Vec3> v, w;                  // projected Gauss-Seidel's running velocities
   // m rows, and a spare past them: the APGD kernel loads a contact's three
   // impulse rows as a four-number vector.
