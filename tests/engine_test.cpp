@@ -680,7 +680,26 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   const CcpProblem::Momentum momentum{ca, cb};
   CcpProblem::TrialSums t = p.apgd_step(x, x_old, span(x1), gx, g_old, momentum, step);
   expect_rows_near(x1, plain_step(y, gy, step));
-  p.apgd_gradient(x1, span(g1), x, x_old, momentum, t);
+  const CcpProblem::TrialSums t_trial = t;
+  p.apgd_gradient(x1, span(g1), x, x_old, momentum, t, {});
+  // The next trial made in the gradient's pass (solve_apgd's guess that x1
+  // is accepted) is apgd_step's from x1, x, g1, gx to the bit, with and
+  // without momentum, and the pass's own sums do not change.
+  for (const CcpProblem::Momentum next : {CcpProblem::Momentum{1.4, 0.4}, CcpProblem::Momentum{}}) {
+    std::vector<double> x2 = rows(), x2_step = rows(), g1_again = rows();
+    CcpProblem::TrialSums t_again = t_trial;
+    const CcpProblem::TrialSums ahead = p.apgd_gradient(
+        x1, span(g1_again), x, x_old, momentum, t_again, {span(x2), cspan(gx), next, 0.2});
+    const CcpProblem::TrialSums alone = p.apgd_step(x1, x, span(x2_step), g1, gx, next, 0.2);
+    EXPECT_EQ(x2, x2_step);
+    EXPECT_EQ(g1_again, g1);
+    EXPECT_EQ(ahead.dd, alone.dd);
+    EXPECT_EQ(ahead.dnd, alone.dnd);
+    EXPECT_EQ(ahead.uphill, alone.uphill);
+    EXPECT_EQ(t_again.dnd, t.dnd);
+    EXPECT_EQ(t_again.res_sum, t.res_sum);
+    EXPECT_GT(ahead.dd, 0.0);
+  }
   // The gradient at x1 by the plain scatter and gather, in world rows.
   std::vector<double> x1_local(m), g_local(m), g = rows();
   p.to_local(cspan(x1), x1_local);
@@ -710,7 +729,7 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   const std::vector<double> nan(m + 1, std::numeric_limits<double>::quiet_NaN());
   t = p.apgd_step(x, cspan(nan), span(x1), gx, cspan(nan), {}, step);
   expect_rows_near(x1, plain_step(x, gx, step));
-  p.apgd_gradient(x1, span(g1), x, cspan(nan), {}, t);
+  p.apgd_gradient(x1, span(g1), x, cspan(nan), {}, t, {});
   EXPECT_TRUE(std::isfinite(t.dd + t.dnd + t.uphill + t.res_sum));
   // Blocks none of whose contacts slides (each sticks, separates or is
   // frictionless) take the projection's short path: a sticking contact

@@ -414,7 +414,7 @@ class BlockRows {
 
  private:
   std::size_t i0_, rows_;
-  double pad_[5][12];  // filled only for the short block
+  double pad_[6][12];  // filled only for the short block
 };
 
 // block(k0, count) over the contacts [begin, end) in blocks of four: the
@@ -651,14 +651,26 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
   return total;
 }
 
-void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_old, Momentum mo,
-                               TrialSums& t) const {
+CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x,
+                                                ConstSpan x_old, Momentum mo, TrialSums& t,
+                                                const NextTrial& next) const {
   scatter_bodies(x1.data(), x1, true, dv_, dw_);
   const double inv_s = diag_max_, s_res = 1.0 / inv_s;  // the residual's step
-  const bool old = mo.cb != 0.0;
+  const bool old = mo.cb != 0.0, ahead = !next.x2.empty(), ahead_old = next.momentum.cb != 0.0;
   const std::size_t nc = a_.size();
-  auto pass = [&](std::size_t begin, std::size_t end, TrialSums& part) {
+  // This iteration's sums and the next trial's, each added in chunk order
+  // as two separate reductions would add them.
+  struct Parts {
+    TrialSums here, ahead;
+    Parts& operator+=(const Parts& o) {
+      here += o.here;
+      ahead += o.ahead;
+      return *this;
+    }
+  };
+  auto pass = [&](std::size_t begin, std::size_t end, Parts& part) {
     d4 d_g1 = {}, res2 = {};
+    TrialLanes sums;
     for_blocks(begin, end, [&](std::size_t k0, auto count) __attribute__((always_inline)) {
       BlockRows blk(3 * k0, 3 * count);
       const FrameLanes F = load_frame(&frame_[k0 / kLanes * kFrameBlock]);
@@ -682,11 +694,20 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
         const d4 res = (r1.c[c] - q.c[c]) * inv_s;
         res2 += res * res;
       }
+      if (ahead) {  // x1 is the next trial's x, x its x_old, g1 its gx
+        const double* pgold = ahead_old ? blk.in(next.gx, 4) : pg;
+        trial_block(p1, px, pg, pgold, next.momentum, next.step, F,
+                    &metric_[k0 / kLanes * kMetricBlock], blk.out(next.x2, 5), sums);
+        blk.flush(next.x2, 5);
+      }
     });
-    part.dnd = lane_sum(d_g1);
-    part.res_sum = lane_sum(res2);
+    part.here.dnd = lane_sum(d_g1);
+    part.here.res_sum = lane_sum(res2);
+    part.ahead = {lane_sum(sums.dd), -lane_sum(sums.d_gy), lane_sum(sums.uphill)};
   };
-  t += reduce_chunks<TrialSums>(nc, pass);
+  const Parts total = reduce_chunks<Parts>(nc, pass);
+  t += total.here;
+  TrialSums t_next = total.ahead;
   gather_rows(dv_, dw_, true, g1);
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const std::size_t i = 3 * nc + j;
@@ -695,6 +716,14 @@ void CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_o
     t.dnd += (x1[i] - y) * g1[i];
     t.res_sum += res * res;
   }
+  if (ahead) {
+    for (std::size_t j = 0; j < rows_.size(); ++j) {
+      const std::size_t i = 3 * nc + j;
+      trial_row(x1[i], ahead_old ? x[i] : 0.0, g1[i], ahead_old ? next.gx[i] : 0.0, next.momentum,
+                next.step, row_metric_[j], rows_[j].lo, rows_[j].hi, next.x2[i], t_next);
+    }
+  }
+  return t_next;
 }
 
 #if defined(CES_KERNEL_AVX512)

@@ -12,7 +12,8 @@
 // through fixed chunks added in chunk order, for the same reason.
 //
 // APGD, the default, runs on a kernel of its own (apgd_step, apgd_gradient):
-// two passes over the contacts per iteration instead of five, four contacts
+// one pass over the contacts per iteration instead of five (two after a
+// rejected trial), four contacts
 // to a SIMD vector, on world rows (a contact's impulse as a world vector;
 // ccp.cpp), so it needs only the normal of a contact's frame.
 //
@@ -224,9 +225,11 @@ class CcpProblem {
   // v's rows times the square roots of their metric weights.
   void scale_by_metric(Span v) const;
 
-  // APGD's iteration in two streaming passes over the contacts (and one
-  // over the bodies), four contacts to a SIMD vector (solve_apgd), on world
-  // rows; x, x1 have a spare past their rows (SolverWorkspace).
+  // APGD's iteration in one streaming pass over the contacts (and one over
+  // the bodies), four contacts to a SIMD vector (solve_apgd), on world
+  // rows: apgd_gradient makes the next trial as it goes, and apgd_step
+  // makes a trial alone at the start and after a rejected one. x, x1 have
+  // a spare past their rows (SolverWorkspace).
   // The extrapolated point y = ca x - cb x_old and its gradient gy = ca gx -
   // cb g_old are made where they are used and never stored (cb = 0: y = x,
   // gy = gx, and x_old, g_old are not read): storing them cost more memory
@@ -246,11 +249,21 @@ class CcpProblem {
   // again).
   TrialSums apgd_step(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx, ConstSpan g_old,
                       Momentum momentum, double step) const;
+  // The next iteration's trial, made in apgd_gradient's pass on the guess
+  // that its x1 is accepted: x2 = Π(y' - step W gy') with y' = ca x1 - cb x
+  // and gy' = ca g1 - cb gx (gx unread when cb = 0). x2 empty: none.
+  struct NextTrial {
+    Span x2;
+    ConstSpan gx;
+    Momentum momentum;
+    double step = 0.0;
+  };
   // The second: g1 = N x1 + r at apgd_step's x1; adds d.g1 and the residual
-  // to t. (Fused with the next iteration's first pass, on the guess that x1
-  // is accepted, it ran 8 % slower on the 1e5-contact bed: bench/README.md.)
-  void apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_old, Momentum momentum,
-                     TrialSums& t) const;
+  // to t. With `next`, makes the next trial in the same pass and returns its
+  // sums: the same bits as apgd_step(x1, x, next.x2, g1, next.gx, ...)
+  // after it, for one pass over the contacts instead of two.
+  TrialSums apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_old, Momentum momentum,
+                          TrialSums& t, const NextTrial& next) const;
 
   // Projected Gauss-Seidel sweeps, in place (needs row access).
   SolveStats solve_pgs(Span x, const SolverSettings& s, SolverWorkspace& ws) const;

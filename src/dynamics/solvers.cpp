@@ -48,28 +48,32 @@ struct Best {
 // residual at 50 iterations fell 16-fold (median; 12-fold at the 95th
 // percentile), and 15 iterations now do what 50 did (docs/accuracy.md,
 // section 2).
-// The sums of an iteration come from the kernel's two passes over the rows,
-// which run on world rows (CcpProblem::to_world): x is changed to them here
-// and back at the end.
+// The sums of an iteration come from the kernel's pass over the rows,
+// which makes x1's gradient and, on the guess that x1 is accepted, the next
+// trial (a rejected x1 costs a trial pass more). The kernel runs on world
+// rows (CcpProblem::to_world): x is changed to them here and back at the
+// end.
 SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, SolverWorkspace& ws) {
   const std::size_t m = p.row_count();
   if (m == 0) return {0, 0.0, true};
-  // Four buffers for iterates: x, the one before it (x_old), the best so
-  // far (kept where it lies instead of copied; it may be x or x_old) and the
-  // trial x1, which goes where it overwrites none of them (a backtracking
-  // step makes it again from x and x_old). Three for the gradients: gx,
-  // g_old and x1's.
-  std::array<Span, 4> xs = {ws.take(0, m), ws.take(1, m), ws.take(2, m), ws.take(3, m)};
+  // Five buffers for iterates: x, the one before it (x_old), the best so
+  // far (kept where it lies instead of copied; it may be x or x_old), the
+  // trial x1 and the next trial, made ahead in x1's gradient pass on the
+  // guess that x1 is accepted. A trial goes where it overwrites none of the
+  // others (a backtracking step makes x1 again from x and x_old). Three for
+  // the gradients: gx, g_old and x1's.
+  std::array<Span, 5> xs = {ws.take(0, m), ws.take(1, m), ws.take(2, m), ws.take(3, m),
+                            ws.take(7, m)};
   std::array<Span, 3> gs = {ws.take(4, m), ws.take(5, m), ws.take(6, m)};
-  std::size_t ix = 0, iold = 1, ibest = 2, gx = 0, gold = 1, g1 = 2;
+  std::size_t ix = 0, iold = 1, ibest = 2, i1 = 3, gx = 0, gold = 1, g1 = 2;
   p.to_world(out, xs[ix]);
   p.world_gradient(xs[ix], gs[gx]);
   copy(xs[ix], xs[ibest]);  // the best until an iterate improves on it
   // Initial Lipschitz estimate, in the metric: |W^1/2 N W^1/2 u| / |u|
   // along u = (1, ..., 1). W normalises N's diagonal blocks to at most 1.
-  std::fill(xs[3].begin(), xs[3].end(), 1.0);
-  p.scale_by_metric(xs[3]);
-  p.multiply(xs[3], gs[g1]);
+  std::fill(xs[i1].begin(), xs[i1].end(), 1.0);
+  p.scale_by_metric(xs[i1]);
+  p.multiply(xs[i1], gs[g1]);
   p.scale_by_metric(gs[g1]);
   double L = std::max(std::sqrt(dot(gs[g1], gs[g1]) / double(m)), 1e-12);
   const double L_cap = 1e3 * double(m);
@@ -77,16 +81,28 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
   Best record;
   // y = ca x - cb x_old; at the start and after a restart y = x.
   CcpProblem::Momentum momentum;
+  CcpProblem::TrialSums t = p.apgd_step(xs[ix], xs[iold], xs[i1], gs[gx], gs[gold], momentum, 1.0 / L);
   int it = 0;
   for (; it < s.max_iterations; ++it) {
-    std::size_t i1 = 0;
-    while (i1 == ix || i1 == iold || i1 == ibest) ++i1;
-    CcpProblem::TrialSums t;
+    // The next iteration's theta, momentum and L if x1 is accepted; a
+    // backtracking step changes t.uphill and L, so they are made again.
+    double theta_next = 1.0;
+    CcpProblem::Momentum momentum_next;
+    std::size_t i2 = 0;
+    while (i2 == ix || i2 == iold || i2 == ibest || i2 == i1) ++i2;
+    CcpProblem::TrialSums t_next;
     for (;;) {
-      t = p.apgd_step(xs[ix], xs[iold], xs[i1], gs[gx], gs[gold], momentum, 1.0 / L);
-      p.apgd_gradient(xs[i1], gs[g1], xs[ix], xs[iold], momentum, t);
+      const double theta1 = 0.5 * (-theta * theta + theta * std::sqrt(theta * theta + 4.0));
+      const double beta = theta * (1.0 - theta) / (theta * theta + theta1);
+      const bool restart = t.uphill > 0.0;  // momentum points uphill
+      theta_next = restart ? 1.0 : theta1;
+      momentum_next = restart ? CcpProblem::Momentum{} : CcpProblem::Momentum{1.0 + beta, beta};
+      CcpProblem::NextTrial next;
+      if (it + 1 < s.max_iterations) next = {xs[i2], gs[gx], momentum_next, 1.0 / (L * 0.9)};
+      t_next = p.apgd_gradient(xs[i1], gs[g1], xs[ix], xs[iold], momentum, t, next);
       if (t.dnd <= L * t.dd * (1.0 + 1e-10) || L > L_cap) break;
       L *= 2.0;
+      t = p.apgd_step(xs[ix], xs[iold], xs[i1], gs[gx], gs[gold], momentum, 1.0 / L);
     }
     const double rms = std::sqrt(t.res_sum / double(m));
     if (rms <= s.tolerance) {
@@ -100,15 +116,14 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
       record.take(rms);
       ibest = i1;
     }
-    const double theta1 = 0.5 * (-theta * theta + theta * std::sqrt(theta * theta + 4.0));
-    const double beta = theta * (1.0 - theta) / (theta * theta + theta1);
-    const bool restart = t.uphill > 0.0;  // momentum points uphill
-    theta = restart ? 1.0 : theta1;
-    momentum = restart ? CcpProblem::Momentum{} : CcpProblem::Momentum{1.0 + beta, beta};
-    // The trial is accepted: it becomes x, x becomes x_old.
-    iold = std::exchange(ix, i1);
+    theta = theta_next;
+    momentum = momentum_next;
+    // The trial is accepted: it becomes x, x becomes x_old, and the next
+    // trial, already made, is x1.
+    iold = std::exchange(ix, std::exchange(i1, i2));
     gold = std::exchange(gx, std::exchange(g1, gold));
     L *= 0.9;
+    t = t_next;
   }
   record.stats.iterations = it;
   p.to_local(xs[ibest], out);
