@@ -973,8 +973,14 @@ std::size_t CcpProblem::guard_bodies(Span x, std::vector<Vec3>& v, std::vector<V
 std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
                                               double tolerance) const {
   const SolverBodies& B = *bodies_;
+  // Bodies are independent here: a released body's contacts are all with
+  // walls, so no other body reads the rows it changes, and the walls' v, w
+  // do not change. In parallel, with the same bits for any thread count.
+  const auto nb = std::ptrdiff_t(B.inv_mass.size());
   std::size_t released = 0;
-  for (std::size_t b = 0; b < B.inv_mass.size(); ++b) {
+#pragma omp parallel for schedule(dynamic, 512) if (nb > kParallelMin) reduction(+ : released)
+  for (std::ptrdiff_t sb = 0; sb < nb; ++sb) {
+    const auto b = std::size_t(sb);
     const std::uint32_t first = adj_.offset[b], last = adj_.offset[b + 1];
     if (first == last) continue;
     // The body's contacts: all with walls (it is their B side), every one
