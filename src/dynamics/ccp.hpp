@@ -13,9 +13,9 @@
 //
 // APGD, the default, runs on a kernel of its own (apgd_step, apgd_gradient):
 // one pass over the contacts per iteration instead of five (two after a
-// rejected trial), four contacts
-// to a SIMD vector, on world rows (a contact's impulse as a world vector;
-// ccp.cpp), so it needs only the normal of a contact's frame.
+// rejected trial), four contacts to a SIMD vector, on world rows (a
+// contact's impulse as a world vector; ccp.cpp), so it needs only the
+// normal of a contact's frame.
 //
 // The normals, friction coefficients and lever arms, and the bodies'
 // inverse masses and inertias, are stored in float: the kernel streams them
