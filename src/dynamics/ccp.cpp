@@ -81,11 +81,11 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(B.inv_mass.size()); ++s) {
     const auto i = std::size_t(s);
     const Mat3& I = B.inv_inertia[i];
-    float* m = &inverse_mass_[kMassStride * i];
+    StoredScalar* m = &inverse_mass_[kMassStride * i];
     // Last, a bound on I^-1's largest eigenvalue (Gershgorin), for the metric.
     const double upper[] = {I(0, 0), I(0, 1), I(0, 2), I(1, 1), I(1, 2), I(2, 2), B.inv_mass[i],
                             I.cwiseAbs().rowwise().sum().maxCoeff()};
-    for (std::size_t c = 0; c < kMassStride; ++c) m[c] = float(upper[c]);
+    for (std::size_t c = 0; c < kMassStride; ++c) m[c] = StoredScalar(upper[c]);
   }
   double diag_max = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : diag_max) if (std::ptrdiff_t(nc) > kParallelMin)
@@ -94,13 +94,13 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     const Vec3& n = c.normal[k];
     const Vec3 ra = c.point[k] - B.x[std::size_t(a_[k])];
     const Vec3 rb = c.point[k] - B.x[std::size_t(b_[k])];
-    FrameScalar* f = &frame_[k / kLanes * kFrameBlock + k % kLanes];
-    for (int c = 0; c < 3; ++c) f[std::size_t(c) * kLanes] = FrameScalar(n[c]);
-    f[3 * kLanes] = FrameScalar(c.friction[k]);
+    StoredScalar* f = &frame_[k / kLanes * kFrameBlock + k % kLanes];
+    for (int c = 0; c < 3; ++c) f[std::size_t(c) * kLanes] = StoredScalar(n[c]);
+    f[3 * kLanes] = StoredScalar(c.friction[k]);
     make_tangents(k);
     for (int c = 0; c < 3; ++c) {
-      lever_[6 * k + std::size_t(c)] = FrameScalar(ra[c]);
-      lever_[6 * k + 3 + std::size_t(c)] = FrameScalar(rb[c]);
+      lever_[6 * k + std::size_t(c)] = StoredScalar(ra[c]);
+      lever_[6 * k + 3 + std::size_t(c)] = StoredScalar(rb[c]);
     }
     // Stabilization: close a positive gap exactly this step, push an overlap
     // out no faster than the recovery speed.
@@ -353,7 +353,7 @@ using mask4 = decltype(d4{} < d4{});
 struct FrameLanes {
   d4 n[3], mu;
 };
-[[gnu::always_inline]] inline FrameLanes load_frame(const FrameScalar* f) {
+[[gnu::always_inline]] inline FrameLanes load_frame(const StoredScalar* f) {
   return {{widen(f), widen(f + kVec), widen(f + 2 * kVec)}, widen(f + 3 * kVec)};
 }
 
@@ -503,7 +503,7 @@ template <class T>
 // g = J dv + b n of a block's contacts (world rows): count (<= 4) contacts
 // from a, b (body indices), frame F, lever arms and bias; lane = contact,
 // lanes past count zero.
-[[gnu::always_inline]] inline Lanes3 gather_block(const FrameLanes& F, const FrameScalar* lever,
+[[gnu::always_inline]] inline Lanes3 gather_block(const FrameLanes& F, const StoredScalar* lever,
                                                   const std::int32_t* a, const std::int32_t* b,
                                                   std::size_t count, const std::vector<Vec3>& dv,
                                                   const std::vector<Vec3>& dw, const double* bias) {
@@ -597,7 +597,7 @@ void CcpProblem::scatter_bodies(const double* P, ConstSpan x, bool add_free,
     const d4 ang = __builtin_shufflevector(ang_zxy, ang_zxy, 1, 2, 0, 3);
     // The record's [00 01 02 11] and [12 22 m -]: the inverse inertia's
     // columns are [00 01 02], [01 11 12], [02 12 22].
-    const float* record = &inverse_mass_[kMassStride * u];
+    const StoredScalar* record = &inverse_mass_[kMassStride * u];
     const d4 lo = widen(record), hi = widen(record + 4);
     const d4 col1 = __builtin_shufflevector(lo, hi, 1, 3, 4, 4);
     const d4 col2 = __builtin_shufflevector(lo, hi, 2, 4, 5, 5);
@@ -734,7 +734,7 @@ double CcpProblem::block_scale(int body, const Vec3& r) const {
   // m^-1 1 + [r]x I^-1 [r]x^T <= (m^-1 + lambda_max(I^-1) |r|^2) 1, as
   // [r]x's singular values are |r|, |r|, 0: exact for a sphere.
   if (body < 0) return 0.0;
-  const float* record = &inverse_mass_[kMassStride * std::size_t(body)];
+  const StoredScalar* record = &inverse_mass_[kMassStride * std::size_t(body)];
   return double(record[6]) + double(record[7]) * r.squaredNorm();
 }
 

@@ -23,7 +23,7 @@
 // vectors, lever arms of a few mm, at most the drum radius), so float's
 // 6e-8 relative error moves a contact point by nanometres; scatter and
 // gather read the same rounded numbers, so N stays exactly symmetric. The
-// build option CES_DOUBLE_FRAMES stores the contacts' in double, to measure
+// build option CES_DOUBLE_STORAGE stores them all in double, to measure
 // what float costs (docs/accuracy.md, section 2).
 #pragma once
 #include <Eigen/Core>
@@ -47,10 +47,10 @@
 
 namespace ces {
 
-#ifdef CES_DOUBLE_FRAMES
-using FrameScalar = double;
+#ifdef CES_DOUBLE_STORAGE
+using StoredScalar = double;
 #else
-using FrameScalar = float;
+using StoredScalar = float;
 #endif
 
 // Storage on cache-line boundaries: a 64-byte block of the kernel is then
@@ -302,17 +302,17 @@ class CcpProblem {
   // float is one 64-byte cache line. The kernel needs no tangents (world
   // rows); the scalar code's are stored apart (tangent_).
   static constexpr std::size_t kLanes = 4, kFrameBlock = 4 * kLanes;
-  AlignedVector<FrameScalar> frame_;
+  AlignedVector<StoredScalar> frame_;
   // Lever arms contact by contact, a's then b's: lever_[6 k + 3 side + c].
   // The bodies' pass reads one contact's arm of one side, as one vector;
   // the gather reads a block's, and transposes them. One spare at the end:
   // a vector load of the last arm reads a fourth number it does not use.
-  std::vector<FrameScalar> lever_;
-  const FrameScalar* frame_at(std::size_t k) const {
+  std::vector<StoredScalar> lever_;
+  const StoredScalar* frame_at(std::size_t k) const {
     return &frame_[k / kLanes * kFrameBlock + k % kLanes];
   }
   Vec3 normal(std::size_t k) const {
-    const FrameScalar* f = frame_at(k);
+    const StoredScalar* f = frame_at(k);
     return {double(f[0]), double(f[kLanes]), double(f[2 * kLanes])};
   }
   double friction(std::size_t k) const { return double(frame_at(k)[3 * kLanes]); }
@@ -330,7 +330,7 @@ class CcpProblem {
   // Contact k's rows of x (its frame's) as a world vector.
   Vec3 world_impulse(std::size_t k, ConstSpan x) const;
   Vec3 lever(std::size_t k, std::size_t side) const {
-    const FrameScalar* r = &lever_[6 * k + 3 * side];
+    const StoredScalar* r = &lever_[6 * k + 3 * side];
     return {double(r[0]), double(r[1]), double(r[2])};
   }
   Vec3 lever_a(std::size_t k) const { return lever(k, 0); }
@@ -351,7 +351,7 @@ class CcpProblem {
   // and PGS's own sweeps apply SolverBodies' doubles, which differ from
   // them by float's rounding.
   static constexpr std::size_t kMassStride = 8;
-  AlignedVector<float> inverse_mass_;
+  AlignedVector<StoredScalar> inverse_mass_;
   std::vector<BilateralRow> rows_;
   std::vector<double> row_diag_;
   ContactAdjacency adj_;  // bodies with finite mass
