@@ -83,26 +83,34 @@ class UnionIntegrator {
     const double edge = (hi - lo).maxCoeff();
     const double finest = *std::min_element(r_.begin(), r_.end()) / 64.0;
     const int depth = std::min(12, int(std::ceil(std::log2(edge / finest))));
+    near_.assign(std::size_t(depth) + 2, {});
+    for (std::size_t i = 0; i < c_.size(); ++i) near_[std::size_t(depth) + 1].push_back(i);
     Moments m;
     visit(lo, edge, depth, m);
     return m;
   }
 
  private:
-  bool inside_any(const Vec3& p) const {
-    for (std::size_t i = 0; i < c_.size(); ++i)
-      if ((p - c_[i]).squaredNorm() <= r_[i] * r_[i]) return true;
-    return false;
-  }
-  void visit(const Vec3& lo, double edge, int depth, Moments& m) const {
+  // A cell's tests go over the spheres that reach its parent only, in
+  // index order (near_[depth + 1]): a flake's 19 spheres were all tested
+  // in every cell, and this integration took 0.75 s of each start of
+  // ces_pcb.yaml. A sphere dropped from the list is farther from the
+  // parent than its radius by a margin far above rounding, so it cannot
+  // touch or contain any point of a child: the same cells are added in the
+  // same order, to the bit.
+  void visit(const Vec3& lo, double edge, int depth, Moments& m) {
     const Vec3 hi = lo + Vec3::Constant(edge);
+    std::vector<std::size_t>& near = near_[std::size_t(depth)];
+    near.clear();
     bool touches = false;
-    for (std::size_t i = 0; i < c_.size(); ++i) {
+    for (const std::size_t i : near_[std::size_t(depth) + 1]) {
       const Vec3 nearest = c_[i].cwiseMax(lo).cwiseMin(hi);
-      if ((nearest - c_[i]).squaredNorm() >= r_[i] * r_[i]) continue;
+      const double d2 = (nearest - c_[i]).squaredNorm(), r2 = r_[i] * r_[i];
+      if (d2 < r2 * (1.0 + 1e-9)) near.push_back(i);
+      if (d2 >= r2) continue;
       touches = true;
       const Vec3 far = (c_[i] - lo).cwiseAbs().cwiseMax((c_[i] - hi).cwiseAbs());
-      if (far.squaredNorm() <= r_[i] * r_[i]) {  // whole cell inside sphere i
+      if (far.squaredNorm() <= r2) {  // whole cell inside sphere i
         m.add_box(lo + Vec3::Constant(0.5 * edge), Vec3::Constant(edge));
         return;
       }
@@ -114,7 +122,7 @@ class UnionIntegrator {
       for (int k = 0; k < 8; ++k) {
         const Vec3 p = lo + edge * Vec3(0.5 + ((k & 1) ? g : -g), 0.5 + ((k & 2) ? g : -g),
                                         0.5 + ((k & 4) ? g : -g));
-        if (inside_any(p)) m.add_point(p, w);
+        if (inside_any(p, near)) m.add_point(p, w);
       }
       return;
     }
@@ -122,8 +130,14 @@ class UnionIntegrator {
     for (int k = 0; k < 8; ++k)
       visit(lo + half * Vec3(k & 1, (k >> 1) & 1, (k >> 2) & 1), half, depth - 1, m);
   }
+  bool inside_any(const Vec3& p, const std::vector<std::size_t>& spheres) const {
+    for (const std::size_t i : spheres)
+      if ((p - c_[i]).squaredNorm() <= r_[i] * r_[i]) return true;
+    return false;
+  }
   const std::vector<Vec3>& c_;
   const std::vector<double>& r_;
+  std::vector<std::vector<std::size_t>> near_;  // per depth: the spheres near the cell visited
 };
 
 // Eigen returns eigenvectors with arbitrary signs; fix them so the principal
