@@ -83,8 +83,12 @@ class Beds {
   BedRun measure(std::size_t n, int threads) const {
     std::fprintf(stderr, "bed of %zu spheres, %d thread(s) ... ", n, threads);
     const BedRun b = measure_bed(n, threads, kIterations, work_);
-    std::fprintf(stderr, "%zu contacts, %d steps of %.3g s, %.1f M contact-it/s/core\n",
-                 b.contacts, b.steps, b.wall, b.rate_per_core() / 1e6);
+    const ces::StageTimes& t = b.stages;
+    std::fprintf(stderr,
+                 "%zu contacts, %d steps of %.3g s, %.1f M contact-it/s/core (ms: broad %.3g, "
+                 "narrow %.3g, assemble %.3g, solve %.3g, integrate %.3g)\n",
+                 b.contacts, b.steps, b.wall, b.rate_per_core() / 1e6, 1e3 * t.broadphase,
+                 1e3 * t.narrowphase, 1e3 * t.assemble, 1e3 * t.solve, 1e3 * t.integrate);
     return b;
   }
   static BedRun median(std::vector<BedRun> runs) {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "common/math.hpp"
+#include "common/parallel.hpp"
 
 namespace ces {
 
@@ -30,7 +31,7 @@ class GridBroadphase {
   void sweep(std::size_t chunk, std::size_t end, const std::vector<Vec3>& centers,
              const std::vector<double>& radii);
   std::vector<Entry> entries_;  // by cell, then index
-  std::vector<std::vector<std::int32_t>> chunk_partners_;
+  std::vector<OwnLine<std::vector<std::int32_t>>> chunk_partners_;
   std::vector<Run> runs_;
   std::vector<std::size_t> offsets_;
 };

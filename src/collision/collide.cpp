@@ -133,7 +133,7 @@ void raise_to(double& target, double value) {
 }
 
 template <class Fill>
-void run_chunked(std::size_t n, std::vector<Contacts>& chunks, Contacts& out, std::size_t& used,
+void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts& out, std::size_t& used,
                  Fill fill) {
   const std::size_t count = (n + kChunk - 1) / kChunk;
   // Never shrink: the buffers keep their capacity from step to step.

@@ -4,6 +4,7 @@
 
 #include "collision/broadphase.hpp"
 #include "collision/contacts.hpp"
+#include "common/parallel.hpp"
 #include "dynamics/model.hpp"
 #include "dynamics/state.hpp"
 
@@ -31,7 +32,7 @@ class Collider {
   std::vector<double> reach_, envelope_;
   std::vector<double> kick_;  // what impacts with neighbours can add to the travel (m)
   std::vector<std::pair<std::int32_t, std::int32_t>> pairs_;
-  std::vector<Contacts> chunks_;
+  std::vector<OwnLine<Contacts>> chunks_;
   std::size_t used_ = 0;  // contacts written to the output so far this step
   GridBroadphase grid_;
 };
