@@ -52,8 +52,9 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   if (chunk_partners_.size() < chunks) chunk_partners_.resize(chunks);  // keeps capacities
   runs_.resize(n);
-  // Dynamic: dense regions of the flow cost more per entry (as in collide.cpp).
-#pragma omp parallel for schedule(dynamic) if (chunks > 1)
+  // Chunks dealt round-robin: dense regions of the flow cost more per entry,
+  // and a chunk stays with its thread from step to step (as in collide.cpp).
+#pragma omp parallel for schedule(static, 1) if (chunks > 1)
   for (std::size_t ch = 0; ch < chunks; ++ch)
     sweep(ch, std::min(n, (ch + 1) * kChunk), centers, radii);
 
