@@ -28,12 +28,14 @@ class GridBroadphase {
   struct Run {
     std::uint32_t chunk, begin, count;
   };
+  void sort_entries();
   void sweep(std::size_t chunk, std::size_t end, const std::vector<Vec3>& centers,
              const std::vector<double>& radii);
   std::vector<Entry> entries_;  // by cell, then index
+  std::vector<Entry> sorted_;   // the merges' other buffer
   std::vector<OwnLine<std::vector<std::int32_t>>> chunk_partners_;
   std::vector<Run> runs_;
-  std::vector<std::size_t> offsets_;
+  std::vector<std::size_t> block_first_;  // the first pair of each block of particles
 };
 
 }  // namespace ces
