@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 
+#include "common/parallel.hpp"
+
 namespace ces {
 
 void Contacts::clear() {
@@ -76,7 +78,12 @@ std::size_t ContactMemory::home(const ContactKey& key) const {
 }
 
 void ContactMemory::assign(const std::vector<ContactKey>& keys, std::vector<Vec3>& values) {
-  keys_ = keys;
+  // Copied in parallel: on one thread the largest serial part of the
+  // integrate stage (2.4 MB at 1e5 contacts).
+  keys_.resize(keys.size());
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(keys.size()) > kParallelMin)
+  for (std::ptrdiff_t k = 0; k < std::ptrdiff_t(keys.size()); ++k)
+    keys_[std::size_t(k)] = keys[std::size_t(k)];
   values_.swap(values);
   built_.store(false, std::memory_order_release);
 }

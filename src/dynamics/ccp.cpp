@@ -822,7 +822,7 @@ void CcpProblem::make_tangents(std::size_t k) {
 }
 
 void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMemory& previous,
-                            ConstSpan prev_x, Span x) const {
+                            ConstSpan prev_rows, Span x) const {
   // In fixed chunks, each with a cursor of its own (ContactMemory::find),
   // in parallel: what a contact finds does not depend on them.
   const std::size_t nc = keys.size(), chunk = std::size_t(kReduceChunk);
@@ -841,9 +841,8 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMe
   }
   const std::size_t base = 3 * nc;
   std::fill(x.begin() + std::ptrdiff_t(base), x.end(), 0.0);
-  const auto prev_base = std::ptrdiff_t(prev_x.size()) - std::ptrdiff_t(rows_.size());
-  if (prev_base >= 0 && prev_base % 3 == 0)
-    for (std::size_t r = 0; r < rows_.size(); ++r) x[base + r] = prev_x[std::size_t(prev_base) + r];
+  if (prev_rows.size() == rows_.size())
+    std::copy(prev_rows.begin(), prev_rows.end(), x.begin() + std::ptrdiff_t(base));
   project(x);
 }
 

@@ -156,9 +156,9 @@ class CcpProblem {
   void world_impulses(ConstSpan x, std::vector<Vec3>& out) const;
   // Initial guess: each contact's previous world impulse (found by key in
   // `previous`) re-expressed in its new frame; bilateral rows keep their
-  // previous values (from prev_x).
+  // previous values, prev_rows, if there are as many (else 0).
   void warm_start(const std::vector<ContactKey>& keys, const ContactMemory& previous,
-                  ConstSpan prev_x, Span x) const;
+                  ConstSpan prev_rows, Span x) const;
 
   // The wall guard, after a solve (world.cpp): for each contact of a
   // particle with a body of infinite mass (a wall, the drum, a mesh) whose

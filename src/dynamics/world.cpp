@@ -201,7 +201,7 @@ const StepStats& World::step() {
   problem_.assemble(ccp_contacts, solver_bodies_, rows_, h, m.contact);
   gamma_.resize(problem_.row_count());
   if (m.solver.warm_start)
-    problem_.warm_start(ccp_contacts.key, prev_impulses_, prev_gamma_, gamma_);
+    problem_.warm_start(ccp_contacts.key, prev_impulses_, prev_rows_, gamma_);
   else
     std::fill(gamma_.begin(), gamma_.end(), 0.0);
   double pen_max = stats.max_penetration, rel_max = stats.max_penetration_relative,
@@ -286,14 +286,28 @@ void World::make_safe(StepStats& stats) {
     problem_.row_velocities(gamma_, base_v_, base_w_);
     problem_.gradient_at(base_v_, base_w_, r);  // at the joints' impulses alone
     problem_.gradient_at(v, w, g);              // N x + r, from the velocities of x
-    double rx = 0.0, xnx = 0.0;    // in row order: the same bits for any thread count
-    for (std::size_t i = 0; i < contact_rows; ++i) {
-      rx += r[i] * gamma_[i];
-      xnx += gamma_[i] * (g[i] - r[i]);
-    }
+    // r.x and x.Nx in fixed chunks: the same bits for any thread count.
+    struct Sums {
+      double rx = 0.0, xnx = 0.0;
+      Sums& operator+=(const Sums& o) {
+        rx += o.rx;
+        xnx += o.xnx;
+        return *this;
+      }
+    };
+    const Sums f = reduce_chunks<Sums>(problem_.contact_count(), [&](std::size_t begin,
+                                                                     std::size_t end, Sums& part) {
+      for (std::size_t i = 3 * begin; i < 3 * end; ++i) {
+        part.rx += r[i] * gamma_[i];
+        part.xnx += gamma_[i] * (g[i] - r[i]);
+      }
+    });
+    const double rx = f.rx, xnx = f.xnx;
     if (0.5 * xnx + rx > 0.0) {
       const double scale = xnx > 0.0 ? std::clamp(-rx / xnx, 0.0, 1.0) : 0.0;
-      for (std::size_t i = 0; i < contact_rows; ++i) gamma_[i] *= scale;
+      const auto n = std::ptrdiff_t(contact_rows);
+#pragma omp parallel for schedule(static) if (n > 3 * kParallelMin)
+      for (std::ptrdiff_t i = 0; i < n; ++i) gamma_[std::size_t(i)] *= scale;
       stats.impulse_scale = scale;
       problem_.velocities(gamma_, v, w);
       changed = true;
@@ -456,7 +470,9 @@ void World::reorder_in_space() {
 
 void World::remember_impulses() {
   problem_.world_impulses(gamma_, impulse_scratch_);
-  prev_gamma_ = gamma_;
+  // The rows alone: a copy of the whole solution was a serial pass over
+  // the contacts' rows.
+  prev_rows_.assign(gamma_.end() - std::ptrdiff_t(rows_.size()), gamma_.end());
   prev_impulses_.assign(contacts_.key, impulse_scratch_);
 }
 

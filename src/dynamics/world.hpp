@@ -132,9 +132,9 @@ class World {
   SolverWorkspace workspace_;
   std::vector<double> gamma_;
   // Warm start: last step's contact impulses as world vectors, by key, and
-  // its solution (for the bilateral rows).
+  // its bilateral rows' impulses.
   ContactMemory prev_impulses_;
-  std::vector<double> prev_gamma_;
+  std::vector<double> prev_rows_;
   std::vector<Vec3> impulse_scratch_;
   std::vector<Vec3> base_v_, base_w_;  // make_safe: the velocities of the joints' impulses
   DemContacts dem_;
