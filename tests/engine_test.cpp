@@ -8,7 +8,6 @@
 #include <cstring>
 #include <memory>
 
-#include "dynamics/adjacency.hpp"
 #include "dynamics/ccp.hpp"
 #include "dynamics/world.hpp"
 #include "feed/shapes.hpp"
@@ -599,39 +598,6 @@ TEST(Engine, ConeProjectionIsMoreauDecomposition) {
   }
 }
 
-
-// The bodies' pass splits the bodies among threads by their contacts
-// (ContactAdjacency::share): on 1 to 4 threads the shares tile the bodies
-// in order, and each share's weight (entries + kBodyCost per body) is
-// within one body's weight of an equal part, where halves by body count
-// are 3 to 1 here: a run of bodies with no contacts (in flight), then one
-// with ten each (in a pile), and a wall (not listed) touching the pile.
-TEST(Engine, BodyPassSharesBalanceContacts) {
-  std::vector<std::int32_t> a, b;
-  constexpr std::int32_t kFree = 500, kPiled = 500, kWall = kFree + kPiled;
-  for (std::int32_t i = kFree; i < kWall; ++i)
-    for (std::int32_t d = 1; d <= 5; ++d) {
-      a.push_back(i);
-      b.push_back(i + d < kWall ? i + d : kWall);
-    }
-  ContactAdjacency adj;
-  adj.build(a, b, kWall + 1, [](std::int32_t i) { return i < kWall; });
-  const auto weight = [&](std::size_t first, std::size_t last) {
-    return double(adj.offset[last] - adj.offset[first] + ContactAdjacency::kBodyCost * (last - first));
-  };
-  const double most = 10 + ContactAdjacency::kBodyCost;  // one body's
-  EXPECT_GT(weight(kWall / 2, kWall + 1), 2.5 * weight(0, kWall / 2));  // halves: skewed
-  for (int threads = 1; threads <= 4; ++threads) {
-    std::size_t next = 0;
-    for (int t = 0; t < threads; ++t) {
-      const auto [first, last] = adj.share(t, threads);
-      EXPECT_EQ(first, next) << t << " of " << threads;
-      EXPECT_NEAR(weight(first, last), weight(0, kWall + 1) / threads, most) << t << " of " << threads;
-      next = last;
-    }
-    EXPECT_EQ(next, std::size_t(kWall + 1));
-  }
-}
 
 // The APGD kernel (CcpProblem::apgd_step, apgd_gradient: four contacts to a
 // SIMD vector, the last block padded, on world rows) against the plain row

@@ -572,7 +572,9 @@ void CcpProblem::scatter_bodies(const double* P, ConstSpan x, bool add_free,
   // past them (assemble), which stays.
   if (dv.size() < B.inv_mass.size()) dv.resize(B.inv_mass.size());
   if (dw.size() < B.inv_mass.size()) dw.resize(B.inv_mass.size());
-  auto one_body = [&](std::size_t u) __attribute__((always_inline)) {
+#pragma omp parallel for schedule(static) if (nb > kParallelMin)
+  for (std::ptrdiff_t i = 0; i < nb; ++i) {
+    const auto u = std::size_t(i);
     // Lanes x, y, z of a vector; the fourth is never read (the loads of
     // P and lever_ take the next number into it; both have a spare).
     // ang_zxy holds r x p rotated by a lane, (z, x, y): r p_yzx - r_yzx p
@@ -610,11 +612,6 @@ void CcpProblem::scatter_bodies(const double* P, ConstSpan x, bool add_free,
       dv[u] += B.v_free[u];
       dw[u] += B.w_free[u];
     }
-  };
-#pragma omp parallel if (nb > kParallelMin)
-  {
-    const auto [first, last] = adj_.share(omp_get_thread_num(), omp_get_num_threads());
-    for (std::size_t u = first; u < last; ++u) one_body(u);
   }
   for (std::size_t j = 0; j < rows_.size(); ++j) apply_row(B, rows_[j], x[3 * a_.size() + j], dv, dw);
 }
