@@ -3,11 +3,15 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
-#include <limits>
 #include <cstring>
+#include <limits>
 #include <memory>
+#include <thread>
 
+#include "common/parallel.hpp"
 #include "dynamics/ccp.hpp"
 #include "dynamics/world.hpp"
 #include "feed/shapes.hpp"
@@ -918,6 +922,31 @@ TEST(Engine, PileIsBitwiseIdenticalAcrossRunsAndThreads) {
   ASSERT_EQ(a.size(), c.size());
   EXPECT_EQ(0, std::memcmp(a.data(), b.data(), a.size() * sizeof(double)));
   EXPECT_EQ(0, std::memcmp(a.data(), c.data(), a.size() * sizeof(double)));
+}
+
+// for_each_chunk (common/parallel.hpp), which the solver's passes run on:
+// every chunk runs exactly once on 1 to 3 threads, and when one thread is
+// slow (it sleeps 1 ms in each of its chunks) the others take over what is
+// left of its share. A static schedule leaves it its whole share (500 of
+// 1000 chunks at 2 threads): here it keeps a few, and fewer than half
+// unless the fast thread is kept off its core for 250 ms.
+TEST(Engine, EveryChunkRunsOnceAndASlowThreadsShareIsTakenOver) {
+  constexpr std::size_t kChunks = 1000;
+  for (const int threads : {1, 2, 3}) {
+    omp_set_num_threads(threads);
+    std::vector<std::atomic<int>> runs(kChunks);
+    std::atomic<std::size_t> slow_ran{0};
+    for_each_chunk(kChunks, true, [&](std::size_t c) {
+      runs[c].fetch_add(1);
+      if (threads > 1 && omp_get_thread_num() == 1) {
+        slow_ran.fetch_add(1);
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+    });
+    for (std::size_t c = 0; c < kChunks; ++c) ASSERT_EQ(runs[c].load(), 1) << c << ", " << threads;
+    if (threads > 1) EXPECT_LT(slow_ran.load(), kChunks / threads / 2) << threads << " threads";
+  }
+  omp_set_num_threads(omp_get_num_procs());
 }
 
 // ---------------------------------------------------------------- spatial order

@@ -1,6 +1,11 @@
 // When the engine's loops fork threads.
 #pragma once
+#include <atomic>
 #include <cstddef>
+#include <cstdint>
+#include <memory>
+
+#include <omp.h>
 
 namespace ces {
 
@@ -16,5 +21,64 @@ inline constexpr std::ptrdiff_t kParallelMin = 256;
 // 3.5-4.0 ms on two threads against 3.3 on one; 1.8 ms with this.
 template <class T>
 struct alignas(64) OwnLine : T {};
+
+// fn(c) for every chunk c in [0, count), each once, on the threads. Each
+// thread runs its own contiguous share in order, as a static schedule
+// would, then takes what is left of the others' shares from their ends.
+// On a VM whose second core runs slower at times (a neighbour on it),
+// static halves wait for the slow one: the 1e5 bed's 2-thread solve ran at
+// 38 M contact-iterations/s/core against 46 on one thread. A dynamic
+// schedule evens that out but hands chunks to whichever core is free, so
+// their data moves between the cores every pass: 3-5 % slower on a quiet
+// machine. Here a chunk changes core only when its owner is behind. What
+// fn computes must depend on c alone (fixed chunks), never on the thread.
+template <class Fn>
+void for_each_chunk(std::size_t count, bool parallel, Fn&& fn) {
+  const int threads = parallel && count > 1 ? omp_get_max_threads() : 1;
+  if (threads == 1) {
+    for (std::size_t c = 0; c < count; ++c) fn(c);
+    return;
+  }
+  // A share's remaining chunks [front, back), packed in one word so that
+  // its owner (at the front) and a thief (at the back) never take the same.
+  struct alignas(64) Share {
+    std::atomic<std::uint64_t> span;
+  };
+  static thread_local std::unique_ptr<Share[]> buffer;
+  static thread_local int capacity = 0;
+  if (capacity < threads) {
+    buffer = std::make_unique<Share[]>(std::size_t(threads));
+    capacity = threads;
+  }
+  // Named through a pointer: inside the region the thread_local would be
+  // each worker's own.
+  Share* shares = buffer.get();
+  const auto n = std::uint64_t(count);
+  for (int t = 0; t < threads; ++t)
+    shares[t].span.store(n * std::uint64_t(t) / std::uint64_t(threads) |
+                             (n * std::uint64_t(t + 1) / std::uint64_t(threads)) << 32,
+                         std::memory_order_relaxed);
+  auto take = [](Share& share, bool front, std::size_t& c) {
+    std::uint64_t span = share.span.load(std::memory_order_relaxed);
+    for (;;) {
+      const std::uint64_t lo = span & 0xffffffffu, hi = span >> 32;
+      if (lo >= hi) return false;
+      const std::uint64_t next = front ? (lo + 1) | hi << 32 : lo | (hi - 1) << 32;
+      if (share.span.compare_exchange_weak(span, next, std::memory_order_relaxed)) {
+        c = std::size_t(front ? lo : hi - 1);
+        return true;
+      }
+    }
+  };
+#pragma omp parallel num_threads(threads)
+  {
+    const int t = omp_get_thread_num();
+    std::size_t c = 0;
+    while (take(shares[t], true, c)) fn(c);
+    // The others' leftovers; a share whose thread the team lacks too.
+    for (int k = 1; k < threads; ++k)
+      while (take(shares[(t + k) % threads], false, c)) fn(c);
+  }
+}
 
 }  // namespace ces

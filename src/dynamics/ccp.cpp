@@ -572,9 +572,7 @@ void CcpProblem::scatter_bodies(const double* P, ConstSpan x, bool add_free,
   // past them (assemble), which stays.
   if (dv.size() < B.inv_mass.size()) dv.resize(B.inv_mass.size());
   if (dw.size() < B.inv_mass.size()) dw.resize(B.inv_mass.size());
-#pragma omp parallel for schedule(static) if (nb > kParallelMin)
-  for (std::ptrdiff_t i = 0; i < nb; ++i) {
-    const auto u = std::size_t(i);
+  auto one_body = [&](std::size_t u) __attribute__((always_inline)) {
     // Lanes x, y, z of a vector; the fourth is never read (the loads of
     // P and lever_ take the next number into it; both have a spare).
     // ang_zxy holds r x p rotated by a lane, (z, x, y): r p_yzx - r_yzx p
@@ -612,7 +610,13 @@ void CcpProblem::scatter_bodies(const double* P, ConstSpan x, bool add_free,
       dv[u] += B.v_free[u];
       dw[u] += B.w_free[u];
     }
-  }
+  };
+  // Chunks of bodies, as the contact passes' (reduce_chunks): each body's
+  // sum is its own, so the bits do not depend on who runs it.
+  const auto bodies = std::size_t(nb), chunk = std::size_t(kReduceChunk);
+  for_each_chunk((bodies + chunk - 1) / chunk, nb > kParallelMin, [&](std::size_t c) {
+    for (std::size_t u = c * chunk; u < std::min(bodies, (c + 1) * chunk); ++u) one_body(u);
+  });
   for (std::size_t j = 0; j < rows_.size(); ++j) apply_row(B, rows_[j], x[3 * a_.size() + j], dv, dw);
 }
 

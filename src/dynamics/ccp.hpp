@@ -403,11 +403,9 @@ Part reduce_chunks(std::size_t n, ChunkFn fn) {
   static thread_local std::vector<Part> buffer;
   std::vector<Part>& partial = buffer;
   partial.assign(std::size_t(chunks), Part{});
-#pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
-  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
-    const auto c = std::size_t(ch);
+  for_each_chunk(std::size_t(chunks), std::ptrdiff_t(n) > kParallelMin, [&](std::size_t c) {
     fn(c * chunk, std::min(n, (c + 1) * chunk), partial[c]);
-  }
+  });
   Part total{};
   for (const Part& part : partial) total += part;
   return total;
