@@ -54,7 +54,8 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
   if (chunk_partners_.size() < chunks) chunk_partners_.resize(chunks);  // keeps capacities
   runs_.resize(n);
   // Chunks dealt round-robin: dense regions of the flow cost more per entry,
-  // and a chunk stays with its thread from step to step (as in collide.cpp).
+  // and a chunk stays with its thread from step to step (its partner list
+  // in that core's cache).
 #pragma omp parallel for schedule(static, 1) if (chunks > 1)
   for (std::size_t ch = 0; ch < chunks; ++ch)
     sweep(ch, std::min(n, (ch + 1) * kChunk), centers, radii);
@@ -68,7 +69,8 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
 #pragma omp parallel for schedule(static) if (blocks > 1)
   for (std::size_t b = 0; b < blocks; ++b) {
     std::size_t count = 0;
-    for (std::size_t i = b * kBlock; i < std::min(n, (b + 1) * kBlock); ++i) count += runs_[i].count;
+    for (std::size_t i = b * kBlock; i < std::min(n, (b + 1) * kBlock); ++i)
+      count += runs_[i].count;
     block_first_[b + 1] = count;
   }
   for (std::size_t b = 0; b < blocks; ++b) block_first_[b + 1] += block_first_[b];

@@ -133,8 +133,8 @@ void raise_to(double& target, double value) {
 }
 
 template <class Fill>
-void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts& out, std::size_t& used,
-                 Fill fill) {
+void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts& out,
+                 std::size_t& used, Fill fill) {
   const std::size_t count = (n + kChunk - 1) / kChunk;
   // Never shrink: the buffers keep their capacity from step to step.
   if (chunks.size() < count) chunks.resize(count);
@@ -146,8 +146,8 @@ void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts
   // the cores every step, and the pair loop of a 34,000-sphere bed ran no
   // faster on two threads than on one (3.4 ms; 1.9 dealt round-robin).
   // Dealt so, ces_pcb's narrowphase to 1 s took 3.43-4.13 s against
-  // 3.13-3.57 s on for_each_chunk (4 pairs). Each chunk fills its own list: the same
-  // contacts.
+  // 3.13-3.57 s on for_each_chunk (4 pairs). Each chunk fills its own
+  // list: the same contacts.
   for_each_chunk(count, count > 1, [&](std::size_t ch) {
     chunks[ch].clear();
     fill(ch * kChunk, std::min(n, (ch + 1) * kChunk), chunks[ch]);
