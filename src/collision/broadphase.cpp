@@ -53,12 +53,11 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   if (chunk_partners_.size() < chunks) chunk_partners_.resize(chunks);  // keeps capacities
   runs_.resize(n);
-  // Chunks dealt round-robin: dense regions of the flow cost more per entry,
-  // and a chunk stays with its thread from step to step (its partner list
-  // in that core's cache).
-#pragma omp parallel for schedule(static, 1) if (chunks > 1)
-  for (std::size_t ch = 0; ch < chunks; ++ch)
+  // Dense regions of the flow cost more per entry: for_each_chunk evens
+  // them out, as in collide.cpp.
+  for_each_chunk(chunks, chunks > 1, [&](std::size_t ch) {
     sweep(ch, std::min(n, (ch + 1) * kChunk), centers, radii);
+  });
 
   // Each particle's run in index order: the pairs come out sorted by (i, j)
   // whatever the chunks and threads. Where a block of particles' runs start
