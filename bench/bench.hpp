@@ -144,7 +144,7 @@ struct Results {
   int iterations = 0;
   std::vector<BedRun> sweep;   // 1 thread, contacts ~1e3 .. ~1e6
   BedRun one, two;             // the speed-up point (~1e5 contacts), 1 and 2 threads
-  std::vector<BedRun> rounds_one, rounds_two;  // its interleaved measurements (one, two: medians)
+  std::vector<BedRun> rounds_one, rounds_two;  // its rounds (one, two: medians)
   std::vector<BedRun> growth;  // N, 2N, 4N, ... at 1 thread
   MemoryProbe sparse, packed, million;
   bool million_measured = false;
