@@ -1,6 +1,7 @@
 #include "collision/collide.hpp"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -46,6 +47,40 @@ void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double 
   out.push_back({n, ca + n * (ra + 0.5 * gap), gap, std::min(ra, rb), key});
 }
 
+// A group's five kept: the deepest, the farthest from the centroid (a), the
+// farthest from a (b), and the farthest on either side of the line ab. In
+// four passes over the members; the highest score wins, ties go to the
+// earlier contact.
+std::array<std::size_t, 5> span_points(const std::vector<Candidate>& c,
+                                       std::span<const std::size_t> members) {
+  Vec3 centroid = Vec3::Zero();
+  std::size_t deepest = members[0];
+  for (std::size_t k : members) {
+    centroid += c[k].point;
+    if (c[k].gap < c[deepest].gap) deepest = k;
+  }
+  centroid /= double(members.size());
+  auto farthest_from = [&](const Vec3& x) {
+    std::size_t arg = members[0];
+    double top = (c[arg].point - x).squaredNorm();
+    for (std::size_t k : members)
+      if (const double d = (c[k].point - x).squaredNorm(); d > top) arg = k, top = d;
+    return arg;
+  };
+  const std::size_t a = farthest_from(centroid);
+  const Vec3& pa = c[a].point;
+  const std::size_t b = farthest_from(pa);
+  const Vec3 side = c[a].normal.cross(c[b].point - pa);
+  std::size_t left = members[0], right = members[0];
+  double top_left = (c[left].point - pa).dot(side), top_right = -top_left;
+  for (std::size_t k : members) {
+    const double s = (c[k].point - pa).dot(side);
+    if (s > top_left) left = k, top_left = s;
+    if (-s > top_right) right = k, top_right = -s;
+  }
+  return {deepest, a, b, left, right};
+}
+
 // A flat face resting on another touches it with many of its spheres at
 // once (a flake lying on the drum: 19). A few spanning the face hold it as
 // well and cost far less, so per group of nearly parallel normals a pair's
@@ -83,42 +118,28 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b, do
     if (g == leader.size()) leader.push_back(i);
     group[i] = int(g);
   }
-  const auto groups = int(leader.size());
-  // The contacts by group, each group's in contact order (a counting sort):
-  // one pass, where scanning every contact for each group cost as much as
-  // the grouping.
-  start.assign(std::size_t(groups) + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) ++start[std::size_t(group[i]) + 1];
-  for (std::size_t g = 0; g < std::size_t(groups); ++g) start[g + 1] += start[g];
-  fill.assign(start.begin(), start.end() - 1);
+  // The contacts by group, each group's in contact order (a counting sort),
+  // where scanning every contact for each group cost as much as the
+  // grouping. One group (most pairs) is the contacts as they are.
+  const std::size_t groups = leader.size();
   by_group.resize(n);
-  for (std::size_t i = 0; i < n; ++i) by_group[fill[std::size_t(group[i])]++] = i;
-  for (std::size_t g = 0; g < std::size_t(groups); ++g) {
+  start.assign(groups + 1, 0);
+  if (groups == 1) {
+    for (std::size_t i = 0; i < n; ++i) by_group[i] = i;
+    start[1] = n;
+  } else {
+    for (std::size_t i = 0; i < n; ++i) ++start[std::size_t(group[i]) + 1];
+    for (std::size_t g = 0; g < groups; ++g) start[g + 1] += start[g];
+    fill.assign(start.begin(), start.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) by_group[fill[std::size_t(group[i])]++] = i;
+  }
+  for (std::size_t g = 0; g < groups; ++g) {
     const std::span<const std::size_t> members(by_group.data() + start[g], start[g + 1] - start[g]);
     if (members.size() <= kKeep) {
       for (std::size_t k : members) keep[k] = 1;
       continue;
     }
-    // The highest score wins; ties go to the earlier contact.
-    auto best = [&](auto score) {
-      std::size_t arg = members[0];
-      double top = score(arg);
-      for (std::size_t k : members)
-        if (const double v = score(k); v > top) arg = k, top = v;
-      return arg;
-    };
-    Vec3 centroid = Vec3::Zero();
-    for (std::size_t k : members) centroid += c[k].point;
-    centroid /= double(members.size());
-    const std::size_t deepest = best([&](std::size_t k) { return -c[k].gap; });
-    const std::size_t a =
-        best([&](std::size_t k) { return (c[k].point - centroid).squaredNorm(); });
-    const Vec3& pa = c[a].point;
-    const std::size_t b = best([&](std::size_t k) { return (c[k].point - pa).squaredNorm(); });
-    const Vec3 side = c[a].normal.cross(c[b].point - pa);
-    const std::size_t left = best([&](std::size_t k) { return (c[k].point - pa).dot(side); });
-    const std::size_t right = best([&](std::size_t k) { return -(c[k].point - pa).dot(side); });
-    for (std::size_t k : {deepest, a, b, left, right}) keep[k] = 1;
+    for (std::size_t k : span_points(c, members)) keep[k] = 1;
   }
   for (std::size_t k = 0; k < n; ++k)
     if (keep[k]) push(c[k]);
