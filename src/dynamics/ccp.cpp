@@ -979,13 +979,9 @@ std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std:
   // Bodies are independent here: a released body's contacts are all with
   // walls, so no other body reads the rows it changes, and the walls' v, w
   // do not change. In parallel, with the same bits for any thread count.
-  const auto nb = std::ptrdiff_t(B.inv_mass.size());
-  std::size_t released = 0;
-#pragma omp parallel for schedule(dynamic, 512) if (nb > kParallelMin) reduction(+ : released)
-  for (std::ptrdiff_t sb = 0; sb < nb; ++sb) {
-    const auto b = std::size_t(sb);
+  auto release = [&](std::size_t b) -> bool {
     const std::uint32_t first = adj_.offset[b], last = adj_.offset[b + 1];
-    if (first == last) continue;
+    if (first == last) return false;
     // The body's contacts: all with walls (it is their B side), every one
     // pressing is sliding, and at least one lifts off by more than the
     // tolerance. Then dv, dw: what taking all its impulses away would do.
@@ -1002,7 +998,7 @@ std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std:
       dw -= B.inv_inertia[b] * lever_b(k).cross(P);
       lifting = lifting || row_of(k, v, w) > tolerance;
     }
-    if (!eligible || !lifting) continue;
+    if (!eligible || !lifting) return false;
     // The largest share t of them to take away with every row staying >= 0,
     // if taking them away lowers a lifting row at all (friction's torque
     // can make it rise instead).
@@ -1014,38 +1010,35 @@ std::size_t CcpProblem::release_sliding_walls(Span x, std::vector<Vec3>& v, std:
       if (rate < 0.0) t = std::min(t, std::max(0.0, row) / -rate);
       lowers = lowers || (rate < 0.0 && row > tolerance && x[3 * k] > 0.0);
     }
-    if (!lowers || !(t > 0.0)) continue;
+    if (!lowers || !(t > 0.0)) return false;
     for (std::uint32_t e = first; e < last; ++e)
       for (std::size_t r = 0; r < 3; ++r) x[3 * (adj_.entry[e] >> 1) + r] *= 1.0 - t;
     v[b] += t * dv;
     w[b] += t * dw;
-    ++released;
-  }
-  return released;
+    return true;
+  };
+  return reduce_chunks<std::size_t>(B.inv_mass.size(), [&](std::size_t begin, std::size_t end,
+                                                           std::size_t& released) {
+    for (std::size_t b = begin; b < end; ++b) released += release(b);
+  });
 }
 
 CcpProblem::WallGuard CcpProblem::guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
                                               double tolerance, int first_sweeps, int max_sweeps,
                                               const std::vector<std::uint8_t>* locked) const {
   const SolverBodies& B = *bodies_;
-  WallGuard out;
   auto wall_row = [&](std::uint32_t e) {
     const std::size_t k = e >> 1;
     return (e & 1) && B.inv_mass[std::size_t(a_[k])] == 0.0;
   };
   // Bodies are independent here (a wall row moves one body only), so they
   // run in parallel with the same bits for any thread count.
-  const auto nb = std::ptrdiff_t(B.inv_mass.size());
-  std::size_t bodies = 0, corrections = 0, unconverged = 0;
-#pragma omp parallel for schedule(dynamic, 512) if (nb > kParallelMin) \
-    reduction(+ : bodies, corrections, unconverged)
-  for (std::ptrdiff_t sb = 0; sb < nb; ++sb) {
-    const auto b = std::size_t(sb);
+  auto guard = [&](std::size_t b, WallGuard& out) {
     const std::uint32_t first = adj_.offset[b], last = adj_.offset[b + 1];
     bool violated = false;
     for (std::uint32_t e = first; e < last && !violated; ++e)
       violated = wall_row(adj_.entry[e]) && -row_of(adj_.entry[e] >> 1, v, w) > tolerance;
-    if (!violated) continue;
+    if (!violated) return;
     const bool turn = locked == nullptr || !(*locked)[b];
     bool done = false, beyond = false;  // corrected after the first sweeps
     for (int sweep = 0; sweep < max_sweeps && !done; ++sweep) {
@@ -1062,18 +1055,18 @@ CcpProblem::WallGuard CcpProblem::guard_walls(Span x, std::vector<Vec3>& v, std:
         x[3 * k] += d;
         v[b] += B.inv_mass[b] * d * n;
         if (turn) w[b] += B.inv_inertia[b] * (d * cb);
-        ++corrections;
+        ++out.corrections;
         done = false;
         beyond = beyond || sweep >= first_sweeps;
       }
     }
-    bodies += beyond;
-    if (!done) ++unconverged;
-  }
-  out.bodies = bodies;
-  out.corrections = corrections;
-  out.unconverged = unconverged;
-  return out;
+    out.bodies += beyond;
+    out.unconverged += !done;
+  };
+  return reduce_chunks<WallGuard>(B.inv_mass.size(),
+                                  [&](std::size_t begin, std::size_t end, WallGuard& out) {
+                                    for (std::size_t b = begin; b < end; ++b) guard(b, out);
+                                  });
 }
 
 double CcpProblem::row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const {

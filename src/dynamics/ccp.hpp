@@ -180,6 +180,12 @@ class CcpProblem {
     std::size_t corrections = 0;  // rows corrected
     std::size_t bodies = 0;       // bodies still violated after `first_sweeps`
     std::size_t unconverged = 0;  // of them, left violated after max_sweeps
+    WallGuard& operator+=(const WallGuard& o) {
+      corrections += o.corrections;
+      bodies += o.bodies;
+      unconverged += o.unconverged;
+      return *this;
+    }
   };
   WallGuard guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w, double tolerance,
                         int first_sweeps, int max_sweeps,
