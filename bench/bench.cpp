@@ -85,9 +85,10 @@ class Beds {
     const ces::StageTimes& t = b.stages;
     std::fprintf(stderr,
                  "%zu contacts, %d steps of %.3g s, %.1f M contact-it/s/core (ms: broad %.3g, "
-                 "narrow %.3g, assemble %.3g, solve %.3g, integrate %.3g)\n",
-                 b.contacts, b.steps, b.wall, b.rate_per_core() / 1e6, 1e3 * t.broadphase,
-                 1e3 * t.narrowphase, 1e3 * t.assemble, 1e3 * t.solve, 1e3 * t.integrate);
+                 "narrow %.3g, assemble %.3g, solve %.3g, safeguards %.3g, integrate %.3g)\n",
+                 b.contacts, b.steps, b.wall, b.rate_per_core() / 1e6, 1e3 * t[ces::Stage::Broadphase],
+                 1e3 * t[ces::Stage::Narrowphase], 1e3 * t[ces::Stage::Assemble], 1e3 * t[ces::Stage::Solve],
+                 1e3 * t[ces::Stage::Safeguards], 1e3 * t[ces::Stage::Integrate]);
     return b;
   }
   double work_;

@@ -9,7 +9,7 @@
 #include <cstdlib>
 #include <new>
 
-#include "dynamics/world.hpp"
+#include "sim/world.hpp"
 
 namespace {
 std::atomic<bool> counting{false};

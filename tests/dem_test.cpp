@@ -6,7 +6,7 @@
 #include <cstring>
 #include <memory>
 
-#include "dynamics/world.hpp"
+#include "sim/world.hpp"
 #include "support.hpp"
 
 namespace ces {

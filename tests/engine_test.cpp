@@ -13,7 +13,7 @@
 
 #include "common/parallel.hpp"
 #include "dynamics/ccp.hpp"
-#include "dynamics/world.hpp"
+#include "sim/world.hpp"
 #include "feed/shapes.hpp"
 #include "support.hpp"
 

@@ -18,9 +18,10 @@
 #include <string>
 #include <vector>
 
-#include "dynamics/world.hpp"
+#include "sim/world.hpp"
 #include "feed/shapes.hpp"
-#include "fields/stages.hpp"
+#include "fields/drag.hpp"
+#include "fields/electrostatics.hpp"
 
 namespace ces::fields {
 namespace {
@@ -177,7 +178,7 @@ double lift_off_angle(double omega, bool electric) {
   w.add_particle(kSphere, kCuRadius, 1, x0, Quat::Identity(), carried_velocity(omega, x0),
                  carried_spin(omega));
   w.particles().inv_inertia[0].setZero();
-  if (electric) add_electrostatics_stage(w, electrostatics(reference_field(), mats));
+  if (electric) w.set_electrostatics(electrostatics(reference_field(), mats));
   const double load_threshold = 2.0 * w.particles().mass[0] * kG * kLiftStep / kCarryFriction;
   bool carried = false;
   for (int i = 0; i < 20000; ++i) {
@@ -254,7 +255,7 @@ double world_landing(const Launch& l, DragLaw law, double step) {
   auto m = make_model(step, {{l.density, 0.5, ElectricalMaterial::insulator(1.0)}});
   World w(m);
   w.add_particle(kSphere, l.radius, 1, l.position, Quat::Identity(), l.velocity);
-  add_drag_stage(w, {Air{}, law});
+  w.set_drag({Air{}, law});
   Vec3 before = l.position;
   while (true) {
     w.step();
@@ -329,6 +330,17 @@ TEST(Ballistic, SteepLaunchOfLightGrainMatchesOde) {
   EXPECT_GT(stokes - sn, 0.1);
 }
 
+// The forces of this step and where the particles were, read after the
+// forces stage.
+struct ForceProbe : StepObserver {
+  std::vector<Vec3> force, position;
+  void after(Stage stage, const World& world) override {
+    if (stage != Stage::Forces) return;
+    force = world.particles().force;
+    position = world.particles().position;
+  }
+};
+
 // A cluster feels the drag of its equivalent sphere, r = scale (3V/4π)^⅓
 // (two unit spheres: V = 8π/3, r = 2^⅓ scale). Tolerance 1e-12 relative.
 TEST(Drag, ClusterUsesEquivalentSphere) {
@@ -337,10 +349,10 @@ TEST(Drag, ClusterUsesEquivalentSphere) {
   const double scale = 0.4e-3;
   const Vec3 v(1.0, -2.0, 0.5);
   w.add_particle(kPair, scale, 1, Vec3::Zero(), Quat::Identity(), v);
-  add_drag_stage(w, {Air{}, DragLaw::Stokes});
-  Vec3 force = Vec3::Zero();
-  w.add_force_stage([&](World& world, const Contacts&) { force = world.particles().force[0]; });
-  w.step();
+  w.set_drag({Air{}, DragLaw::Stokes});
+  ForceProbe probe;
+  w.step(&probe);
+  const Vec3 force = probe.force[0];
   const Vec3 expected = -6.0 * kPi * Air{}.viscosity * std::cbrt(2.0) * scale * v;
   EXPECT_LT((force - expected).norm(), 1e-12 * expected.norm());
 }
@@ -388,7 +400,7 @@ TEST(Corona, PauthenierGrowthInZone) {
   zone.depth = 5e-3;
   zone.current_density = 1e-4;
   spec.corona = {zone};
-  add_electrostatics_stage(w, spec);
+  w.set_electrostatics(spec);
   const double e = field_at(reference_field(), w.particles().position[0]).norm();
   const double p = 3.0 * kFr4Permittivity / (kFr4Permittivity + 2.0);
   const double saturation = -4.0 * kPi * kEps0 * kFr4Radius * kFr4Radius * p * e;  // negative ions
@@ -425,7 +437,7 @@ TEST(Corona, SaturationModeChargesOnEntry) {
   CoronaZone zone = saturation_zone();
   zone.ion_sign = 1.0;
   spec.corona = {zone};
-  add_electrostatics_stage(w, spec);
+  w.set_electrostatics(spec);
   const double p = 3.0 * kFr4Permittivity / (kFr4Permittivity + 2.0);
   const double saturation = 4.0 * kPi * kEps0 * kFr4Radius * kFr4Radius * p * 4.13e5;
   w.step();
@@ -445,7 +457,7 @@ TEST(Decay, ChargedInsulatorRelaxesExponentially) {
   add_on_drum(w, 2, 10.0 * kDeg);
   add_on_drum(w, 3, -10.0 * kDeg);
   for (double& q : w.particles().charge) q = q0;
-  add_electrostatics_stage(w, electrostatics(reference_field(), mats));
+  w.set_electrostatics(electrostatics(reference_field(), mats));
   for (int i = 1; i <= 200; ++i) {
     w.step();
     if (i % 10 != 0) continue;
@@ -488,7 +500,7 @@ PinRun pin_run(double charge_over_threshold, double duration) {
   const double threshold =
       std::sqrt(outward * 4.0 * kPi * kEps0 * kEpsAir * 4.0 * kFr4Radius * kFr4Radius);
   w.particles().charge[0] = charge_over_threshold * threshold;
-  add_electrostatics_stage(w, electrostatics(no_field(), mats));
+  w.set_electrostatics(electrostatics(no_field(), mats));
   PinRun run{0.0, false};
   for (int i = 0; i * m->step < duration; ++i) {
     w.step();
@@ -529,7 +541,7 @@ TEST(Brush, TouchRemovesInsulatorCharge) {
   for (double& q : w.particles().charge) q = q0;
   ElectrostaticsSpec spec = electrostatics(no_field(), mats);
   spec.brush_body = 1;
-  add_electrostatics_stage(w, spec);
+  w.set_electrostatics(spec);
   const double fall_time = std::sqrt(2.0 * drop / kG);  // 20 ms
   for (int i = 0; i < int(0.5 * fall_time / m->step); ++i) w.step();
   EXPECT_EQ(w.particles().charge[0], q0);  // still falling
@@ -540,17 +552,6 @@ TEST(Brush, TouchRemovesInsulatorCharge) {
 
 // ---------------------------------------------------- forces in the step --
 
-// What the electrostatics stage added this step, and where the particles
-// were, read by a stage after it.
-struct ForceProbe {
-  std::vector<Vec3> force, position;
-  void attach(World& w) {
-    w.add_force_stage([this](World& world, const Contacts&) {
-      force = world.particles().force;
-      position = world.particles().position;
-    });
-  }
-};
 
 // Forces in the step they are computed, from that step's contacts, against
 // PHYSICS §3 written out; then the frozen charges in flight. Gravity off,
@@ -593,12 +594,11 @@ TEST(Forces, ActInTheStepTheyAreComputedAndChargesFreeze) {
   w.add_particle(kSphere, r, 3, off + 0.02 * Vec3::UnitZ());
   Particles& p = w.particles();
   for (std::size_t i = 1; i < p.size(); ++i) p.charge[i] = q;
-  add_electrostatics_stage(w, electrostatics(reference_field(), mats));
+  w.set_electrostatics(electrostatics(reference_field(), mats));
   ForceProbe probe;
-  probe.attach(w);
   const ElectricField field = reference_field();
 
-  w.step();
+  w.step(&probe);
   const Vec3 e = field_at(field, touching);
   const double en = e.dot(n), qc = induced_charge(r, en);
   const Vec3 lift = lift_force(r, en) * n;
@@ -624,7 +624,7 @@ TEST(Forces, ActInTheStepTheyAreComputedAndChargesFreeze) {
                                      image_pull(q, r + 1e-4) * radial(probe.position[5])));
 
   const double frozen = p.charge[0];
-  w.step();
+  w.step(&probe);
   for (std::size_t i : {0, 2})
     ASSERT_GT(probe.position[i].head<2>().norm() - kDrumRadius - r, 5e-4) << "still on the drum";
   EXPECT_EQ(p.charge[0], frozen);
@@ -736,10 +736,9 @@ TEST(FlakeElectrics, ImageForceOfAFlakeIsTheFaceLawLyingFlat) {
     if ((stood * c).y() < lowest.y()) lowest = stood * c;
   w.add_particle(flake, s, 1, Vec3(0.0, kDrumRadius + r, 0.05) - s * lowest, stood);
   for (double& c : w.particles().charge) c = q;
-  add_electrostatics_stage(w, electrostatics(no_field(), mats));
+  w.set_electrostatics(electrostatics(no_field(), mats));
   ForceProbe probe;
-  probe.attach(w);
-  w.step();
+  w.step(&probe);
   const double area = kFlakeFace * s * s;
   const double face_law = q * q / (2.0 * kEps0 * kEpsAir * area);
   EXPECT_NEAR(probe.force[0].y(), -face_law, 0.002 * face_law);
@@ -767,7 +766,7 @@ TEST(FlakeElectrics, FlakeChargesToPauthenierDensityOverItsSurface) {
                  Quat::FromTwoVectors(e.face_normal, Vec3::UnitY()));
   ElectrostaticsSpec spec = electrostatics(reference_field(), mats);
   spec.corona = {saturation_zone()};
-  add_electrostatics_stage(w, spec);
+  w.set_electrostatics(spec);
   w.step();
   const double a = e.face_area * s * s;
   const double surface = 2.0 * a + 2.0 * std::sqrt(kPi * a) * shape.volume * s * s * s / a;
@@ -806,7 +805,7 @@ TEST(FlakeElectrics, SlidingFlakeIsPinnedAndCarried) {
   const double p = 3.0 * kFr4Permittivity / (kFr4Permittivity + 2.0);
   const double rq = s * e.charging_radius;
   w.particles().charge[0] = -4.0 * kPi * kEps0 * rq * rq * p * 4.13e5;
-  add_electrostatics_stage(w, electrostatics(reference_field(), mats));
+  w.set_electrostatics(electrostatics(reference_field(), mats));
   const auto slip = [&] {
     const Vec3& x = w.particles().position[0];
     return (w.particles().velocity[0] - carried_velocity(omega, x)).norm();
@@ -834,7 +833,7 @@ TEST(Electrostatics, RejectsSpecsThatDoNotFitTheModel) {
     ElectrostaticsSpec spec = electrostatics(reference_field(), mats);
     edit(spec);
     try {
-      add_electrostatics_stage(w, spec);
+      w.set_electrostatics(spec);
       ADD_FAILURE() << "accepted: " << what;
     } catch (const std::invalid_argument& err) {
       EXPECT_NE(std::string(err.what()).find(what), std::string::npos) << err.what();
@@ -882,8 +881,8 @@ std::vector<double> charged_drum_state(int threads) {
   zone.angle_end = 95.0 * kDeg;
   zone.depth = 0.02;
   spec.corona = {zone};
-  add_electrostatics_stage(w, spec);
-  add_drag_stage(w, {Air{}, DragLaw::SchillerNaumann});
+  w.set_electrostatics(spec);
+  w.set_drag({Air{}, DragLaw::SchillerNaumann});
   for (int s = 0; s < 100; ++s) {
     if (s == 50)
       for (std::size_t i = w.particles().size(); i-- > 0;)

@@ -12,10 +12,6 @@
 namespace ces {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 constexpr std::size_t kChunk = 128;  // fixed, so contact order never depends on threads
 
@@ -192,10 +188,7 @@ void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts
 
 }  // namespace
 
-void Collider::collide(const Model& model, const Particles& p, const Bodies& bodies,
-                       Contacts& out) {
-  const auto t0 = Clock::now();
-  used_ = 0;  // out is cut to this at the end; see run_chunked
+void Collider::broadphase(const Model& model, const Particles& p) {
   const std::size_t n = p.size();
   const double h = model.step;
   centers_.resize(n);
@@ -221,6 +214,14 @@ void Collider::collide(const Model& model, const Particles& p, const Bodies& bod
     centers_[i] = p.position[i];
     reach_[i] = bounding + envelope_[i];
   }
+  grid_.find_pairs(centers_, reach_, pairs_);
+}
+
+void Collider::narrowphase(const Model& model, const Particles& p, const Bodies& bodies,
+                           Contacts& out) {
+  used_ = 0;  // out is cut to this at the end; see run_chunked
+  const std::size_t n = p.size();
+  const double h = model.step;
   // World centres of every particle's spheres, once per step: the pair loop
   // below visits each of them once per neighbour.
   sphere_first_.resize(n + 1);
@@ -263,13 +264,9 @@ void Collider::collide(const Model& model, const Particles& p, const Bodies& bod
   }
   for (std::size_t b = 0; b < model.bodies.size(); ++b) body_contacts(model, p, bodies, int(b), out);
   out.resize(used_);
-  narrowphase_seconds_ = seconds_since(t0) - broadphase_seconds_;
 }
 
 void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& out) {
-  const auto t0 = Clock::now();
-  grid_.find_pairs(centers_, reach_, pairs_);
-  broadphase_seconds_ = seconds_since(t0);
   const auto& mat = model.materials;
   run_chunked(pairs_.size(), chunks_, out, used_, [&](std::size_t begin, std::size_t end, Contacts& part) {
     static thread_local std::vector<Candidate> candidates;  // kept across steps

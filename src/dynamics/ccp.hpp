@@ -39,7 +39,8 @@
 #include "common/math.hpp"
 #include "common/parallel.hpp"
 #include "dynamics/adjacency.hpp"
-#include "dynamics/model.hpp"
+#include "model/model.hpp"
+#include "model/stats.hpp"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -96,12 +97,6 @@ struct BilateralRow {
   double bias = 0.0;
   double lo = -std::numeric_limits<double>::infinity();
   double hi = std::numeric_limits<double>::infinity();
-};
-
-struct SolveStats {
-  int iterations = 0;
-  double residual = 0.0;  // RMS over rows of the projected-gradient residual (m/s)
-  bool converged = false;
 };
 
 // The solvers' vectors. They live across steps and only grow (std::vector
@@ -167,7 +162,7 @@ class CcpProblem {
   // Gauss-Seidel sweeps over those contacts, into x and into the
   // velocities v, w (which must be those of x). See ccp.cpp.
   // A body flagged in `locked` (per solver body) takes its corrections in
-  // translation only: its spin is left as it is (World::limit_spin).
+  // translation only: its spin is left as it is (dynamics/safeguards.hpp).
   //
   // A wall has infinite mass, so the guard's rows of one particle are a
   // problem of their own: the sweeps run body by body, in parallel, until
@@ -192,7 +187,7 @@ class CcpProblem {
                         const std::vector<std::uint8_t>* locked = nullptr) const;
 
   // The same for every contact of a flagged body, whatever its partner
-  // (the impulse shared by both bodies): after World::limit_spin changed
+  // (the impulse shared by both bodies): after the spin limit changed
   // their spins. v, w need not be those of x.
   std::size_t guard_bodies(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
                            const std::vector<std::uint8_t>& flagged, double tolerance,
@@ -365,10 +360,6 @@ class CcpProblem {
   mutable std::vector<Vec3> dv_, dw_;
   mutable std::vector<double> impulse_;
 };
-
-SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);
-SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);
-SolveStats solve(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);
 
 // Projection of (gn, gt1, gt2) onto the cone |gt| <= mu gn. Inline: it runs
 // twice per contact per iteration.

@@ -1,12 +1,11 @@
-// Projected-gradient solvers for the CCP (see ccp.hpp). Both take x as the
-// warm start and return the best iterate found.
+#include "dynamics/solvers.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <utility>
 
 #include "common/parallel.hpp"
-#include "dynamics/ccp.hpp"
 
 namespace ces {
 namespace {

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "dynamics/world.hpp"
+#include "model/stats.hpp"
 #include "output/files.hpp"
 
 namespace ces::output {
@@ -26,7 +26,7 @@ struct SolverSummary {
   double max_penetration_relative = 0.0;
   double max_wall_penetration_relative = 0.0;  // contacts with static and kinematic bodies only
   // Steps stopped at the cap whose impulses were scaled down so as not to
-  // create energy, and wall rows the wall guard finished (World::step).
+  // create energy, and wall rows the wall guard finished (dynamics/safeguards.hpp).
   std::uint64_t steps_impulses_scaled = 0;
   std::uint64_t wall_corrections = 0;
   // Bodies whose wall rows the guard finished body by body, and those it
@@ -49,7 +49,8 @@ class StepLog {
   // An empty path: statistics only, no steps.csv.
   StepLog(const std::filesystem::path& steps_csv, int max_iterations);
 
-  void record(const StepStats& s, double wall_seconds);
+  // wall_s: the step's stages before the output stage that records it.
+  void record(const StepStats& s);
   SolverSummary summary() const;
   // Publishes steps.csv with every step recorded so far.
   void commit();

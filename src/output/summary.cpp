@@ -78,18 +78,10 @@ Json balance_json(const RunRecord& r) {
 }
 
 Json wall_json(const RunRecord& r) {
-  const StageTimes& s = r.solver.seconds;
-  return {{"total", r.wall},
-          {"stages",
-           {{"feed", r.own.feed},
-            {"broadphase", s.broadphase},
-            {"narrowphase", s.narrowphase},
-            {"forces", s.forces},
-            {"assemble", s.assemble},
-            {"solve", s.solve},
-            {"integrate", s.integrate},
-            {"collect", r.own.collect},
-            {"output", r.own.output}}}};
+  Json stages = Json::object();
+  for (std::size_t i = 0; i < kStageCount; ++i)
+    stages[std::string(kStageNames[i])] = r.solver.seconds.seconds[i];
+  return {{"total", r.wall}, {"stages", stages}};
 }
 
 Json solver_json(const RunRecord& r) {

@@ -5,12 +5,12 @@
 #include <string>
 #include <vector>
 
-#include "output/collection.hpp"
+#include "collect/collection.hpp"
 #include "output/energy.hpp"
 #include "output/step_log.hpp"
 #include "output/tables.hpp"
-#include "output/tally.hpp"
-#include "sim/simulation.hpp"
+#include "common/tally.hpp"
+#include "spec/simulation.hpp"
 
 namespace ces::output {
 
@@ -21,13 +21,6 @@ struct FeedRecord {
   Tally fed;
   std::uint64_t retries = 0;
   std::uint64_t deferrals = 0;
-};
-
-// Wall time outside the engine's own stages (s).
-struct OwnTimes {
-  double feed = 0.0;
-  double collect = 0.0;
-  double output = 0.0;
 };
 
 // Everything a run reports, gathered by sim/run.cpp.
@@ -41,7 +34,6 @@ struct RunRecord {
   double time = 0.0;  // simulated (s)
   int threads = 1;
   double wall = 0.0;  // s
-  OwnTimes own;
   SolverSummary solver;
   EnergyBalance energy;
   std::vector<FeedRecord> feeds;

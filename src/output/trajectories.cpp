@@ -61,16 +61,16 @@ TrajectoryWriter::TrajectoryWriter(const std::filesystem::path& dir, const Simul
   }
 }
 
-void TrajectoryWriter::observe(const World& world) {
+void TrajectoryWriter::observe(const State& state) {
   if (every_ <= 0.0) return;
-  const double due = world.time() + 0.5 * world.model().step;
+  const double due = state.time + 0.5 * sim_->model->step;
   if (due < double(next_frame_) * every_) return;
   next_frame_ = std::uint64_t(std::floor(due / every_)) + 1;
-  sort_by_id(world.particles());
-  if (sim_->output.trajectories.vtk) write_vtp(world);
-  frame_times_.push_back(world.time());
+  sort_by_id(state.particles);
+  if (sim_->output.trajectories.vtk) write_vtp(state);
+  frame_times_.push_back(state.time);
   if (sim_->output.trajectories.vtk) write_pvd();
-  if (csv_.is_open()) append_csv(world);
+  if (csv_.is_open()) append_csv(state);
 }
 
 void TrajectoryWriter::commit() {
@@ -84,8 +84,8 @@ void TrajectoryWriter::sort_by_id(const Particles& p) {
             [&](std::size_t a, std::size_t b) { return p.id[a] < p.id[b]; });
 }
 
-void TrajectoryWriter::write_vtp(const World& world) {
-  const Particles& p = world.particles();
+void TrajectoryWriter::write_vtp(const State& state) {
+  const Particles& p = state.particles;
   const std::size_t n = order_.size();
   text_ =
       "<?xml version=\"1.0\"?>\n"
@@ -95,7 +95,7 @@ void TrajectoryWriter::write_vtp(const World& world) {
       "    <FieldData>\n"
       "      <DataArray type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\" "
       "format=\"ascii\">";
-  append_number(text_, world.time());
+  append_number(text_, state.time);
   text_ += "</DataArray>\n    </FieldData>\n    <Piece NumberOfPoints=\"";
   append_number(text_, n);
   text_ += "\" NumberOfVerts=\"";
@@ -140,13 +140,13 @@ void TrajectoryWriter::write_pvd() {
   write_file_atomic(dir_ / "trajectories.pvd", pvd);
 }
 
-void TrajectoryWriter::append_csv(const World& world) {
-  const Particles& p = world.particles();
-  const auto& materials = world.model().materials.materials();
+void TrajectoryWriter::append_csv(const State& state) {
+  const Particles& p = state.particles;
+  const auto& materials = sim_->model->materials.materials();
   text_.clear();
   CsvWriter row(text_);
   for (const std::size_t i : order_) {
-    row << world.time() << p.id[i] << p.position[i].x() << p.position[i].y() << p.position[i].z()
+    row << state.time << p.id[i] << p.position[i].x() << p.position[i].y() << p.position[i].z()
         << p.velocity[i].x() << p.velocity[i].y() << p.velocity[i].z()
         << p.scale[i] * shape_size_[std::size_t(p.shape[i])]
         << materials[std::size_t(p.material[i])].name;

@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "dynamics/world.hpp"
+#include "model/state.hpp"
 #include "output/files.hpp"
-#include "sim/simulation.hpp"
+#include "spec/simulation.hpp"
 
 namespace ces::output {
 
@@ -22,17 +22,17 @@ class TrajectoryWriter {
   TrajectoryWriter(const std::filesystem::path& dir, const Simulation& sim,
                    std::vector<double> shape_size);
 
-  // Writes a frame if one is due at world.time().
-  void observe(const World& world);
+  // Writes a frame if one is due at state.time.
+  void observe(const State& state);
   // Publishes trajectories.csv.
   void commit();
   std::size_t frames() const { return frame_times_.size(); }
 
  private:
   void sort_by_id(const Particles& p);
-  void write_vtp(const World& world);
+  void write_vtp(const State& state);
   void write_pvd();
-  void append_csv(const World& world);
+  void append_csv(const State& state);
 
   std::filesystem::path dir_;
   const Simulation* sim_;

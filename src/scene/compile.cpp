@@ -708,7 +708,7 @@ class Compiler {
     else if (entry)
       shape_sizes_.push_back(2.0 * shape.bounding_radius);
     else
-      shape_sizes_.push_back(name == "sphere" ? 1.0 : std::cbrt(6.0 * shape.volume / kPi));
+      shape_sizes_.push_back(name == "sphere" ? 1.0 : equal_volume_diameter(shape.volume));
     model_->shapes.push_back(shape);
     return int(model_->shapes.size()) - 1;
   }

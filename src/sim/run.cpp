@@ -1,6 +1,6 @@
-// The run: a World with the feeds as pre-step hooks and the collectors as a
-// post-step hook, stepped to the end time (or until a signal or an error),
-// then every output written from what was accumulated.
+// The run: the World of the compiled scene stepped to the end time (or
+// until a signal or an error), observed by the outputs as it goes, then
+// every output written from what was accumulated.
 #include "sim/run.hpp"
 
 #include <omp.h>
@@ -12,10 +12,7 @@
 #include <filesystem>
 #include <memory>
 
-#include "dynamics/world.hpp"
-#include "feed/feeder.hpp"
-#include "fields/stages.hpp"
-#include "output/collection.hpp"
+#include "common/clock.hpp"
 #include "output/distribution_svg.hpp"
 #include "output/energy.hpp"
 #include "output/field_picture.hpp"
@@ -25,16 +22,12 @@
 #include "output/summary.hpp"
 #include "output/tables.hpp"
 #include "output/trajectories.hpp"
+#include "sim/world.hpp"
 
 namespace ces {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 // The signal that asked the run to stop; 0 while none did. The loop checks
 // it between steps, so a stop never leaves a half-done step behind.
@@ -120,16 +113,54 @@ class Progress {
   double last_ = -1.0;
 };
 
+// The outputs that watch the run as it goes; they only read the world.
+class Observers : public StepObserver {
+ public:
+  Observers(const Simulation& sim, const fs::path& dir, const World& world)
+      : sim_(sim),
+        steps_(sim.output.steps_csv ? dir / "steps.csv" : fs::path(),
+               sim.model->solver.max_iterations),
+        trajectories_(dir, sim, shape_sizes(sim)),
+        energy_(sim, world.state()) {}
+
+  void after(Stage stage, const World& world) override { energy_.after(stage, world.state()); }
+
+  void end_of_step(const World& world) override {
+    const StepStats& s = world.last_step();
+    if (s.step_above_rayleigh_limit && !rayleigh_warned_) {  // now, not only at the end
+      rayleigh_warned_ = true;
+      std::fprintf(stderr, "warning: t = %s s: %s\n", output::format_number(s.time).c_str(),
+                   output::rayleigh_warning(sim_.model->step, s.rayleigh_time, 0).c_str());
+    }
+    steps_.record(s);
+    trajectories_.observe(world.state());
+  }
+
+  void start(const World& world) { trajectories_.observe(world.state()); }  // the frame at t = 0
+  void commit() {
+    steps_.commit();
+    trajectories_.commit();
+  }
+  output::SolverSummary solver() const { return steps_.summary(); }
+  const output::EnergyBalance& energy() const { return energy_.balance(); }
+  std::size_t frames() const { return trajectories_.frames(); }
+
+ private:
+  const Simulation& sim_;
+  output::StepLog steps_;
+  output::TrajectoryWriter trajectories_;
+  output::EnergyLedger energy_;
+  bool rayleigh_warned_ = false;
+};
+
 class Runner {
  public:
   Runner(const Simulation& sim, const RunOptions& options);
   RunResult run();
 
  private:
-  void add_physics();
   void write_field_picture();
   void step_to_end();
-  void observe(const StepStats& s, double wall);
   void write_outputs();
   output::RunRecord record() const;
   void tally_feeds(output::RunRecord& r) const;
@@ -140,14 +171,8 @@ class Runner {
   Clock::time_point start_ = Clock::now();
   fs::path dir_;
   World world_;
-  std::vector<std::unique_ptr<feed::Feeder>> feeders_;  // hooks point at them
-  output::Collection collection_;
-  output::StepLog steps_;
-  output::TrajectoryWriter trajectories_;
-  output::OwnTimes own_;
-  output::EnergyLedger energy_;
-  bool rayleigh_warned_ = false;
-  std::uint64_t steps_done_ = 0;
+  Observers observers_;
+  double output_seconds_ = 0.0;  // the output stage's, and the writing before and after the steps
   bool complete_ = false;
   std::string reason_ = "running";
 };
@@ -156,40 +181,8 @@ Runner::Runner(const Simulation& sim, const RunOptions& options)
     : sim_(sim),
       options_(options),
       dir_(prepare_output_dir(sim, options)),
-      world_(sim.model),
-      collection_(sim, output::shape_sizes(sim)),
-      steps_(sim.output.steps_csv ? dir_ / "steps.csv" : fs::path(),
-             sim.model->solver.max_iterations),
-      trajectories_(dir_, sim, output::shape_sizes(sim)),
-      energy_(sim, world_) {
-  // Hook order matters: the ledger measures after the feeds and on both
-  // sides of the collectors (output/energy.hpp).
-  for (const Feed& f : sim.feeds) {
-    feed::Feeder* feeder =
-        feeders_.emplace_back(std::make_unique<feed::Feeder>(f, sim.seed, *sim.model)).get();
-    world_.add_pre_step([this, feeder](World& w) {
-      const auto t0 = Clock::now();
-      (*feeder)(w);
-      own_.feed += seconds_since(t0);
-    });
-  }
-  world_.add_pre_step([this](World& w) { energy_.after_feeds(w); });
-  world_.add_post_step([this](World& w) {
-    energy_.before_collectors(w);
-    const auto t0 = Clock::now();
-    collection_(w);
-    own_.collect += seconds_since(t0);
-    energy_.after_collectors(w);
-  });
-  add_physics();
-}
-
-// Only what the scene asked for (DESIGN.md §1): no air, no drag stage; no
-// electrostatics section, no field model and no charging pass.
-void Runner::add_physics() {
-  if (sim_.drag) fields::add_drag_stage(world_, *sim_.drag);
-  if (sim_.electrostatics) fields::add_electrostatics_stage(world_, *sim_.electrostatics);
-}
+      world_(sim),
+      observers_(sim, dir_, world_) {}
 
 // A property of the machine, not of the run: written first, so an
 // interrupted run still has it.
@@ -199,7 +192,7 @@ void Runner::write_field_picture() {
   const output::FieldGrid grid = output::sample_field(sim_);
   output::write_file_atomic(dir_ / "field.csv", output::field_csv(grid));
   output::write_file_atomic(dir_ / "field.svg", output::field_svg(sim_, grid));
-  own_.output += seconds_since(t0);
+  output_seconds_ += seconds_since(t0);
 }
 
 RunResult Runner::run() {
@@ -218,52 +211,36 @@ void Runner::step_to_end() {
   const auto steps = std::uint64_t(std::llround(sim_.end_time / sim_.model->step));
   Progress progress(options_.progress && !options_.quiet);
   try {
-    trajectories_.observe(world_);  // the frame at t = 0
-    while (steps_done_ < steps) {
+    observers_.start(world_);
+    while (world_.step_count() < steps) {
       if (g_stop_signal != 0) {
         reason_ = g_stop_signal == SIGINT ? "interrupted by SIGINT" : "interrupted by SIGTERM";
         return;
       }
-      const auto t0 = Clock::now();
-      const StepStats& s = world_.step();
-      ++steps_done_;
-      observe(s, seconds_since(t0));
+      output_seconds_ += world_.step(&observers_).seconds[Stage::Output];
       progress.update(world_, sim_.end_time, seconds_since(start_));
     }
     complete_ = true;
   } catch (const std::exception& e) {
-    reason_ = "error after " + std::to_string(steps_done_) +
+    reason_ = "error after " + std::to_string(world_.step_count()) +
               " steps (t = " + output::format_number(world_.time()) + " s): " + e.what();
   }
 }
 
-void Runner::observe(const StepStats& s, double wall) {
-  if (s.step_above_rayleigh_limit && !rayleigh_warned_) {  // now, not only at the end
-    rayleigh_warned_ = true;
-    std::fprintf(stderr, "warning: t = %s s: %s\n", output::format_number(s.time).c_str(),
-                 output::rayleigh_warning(sim_.model->step, s.rayleigh_time, 0).c_str());
-  }
-  const auto t0 = Clock::now();
-  steps_.record(s, wall);
-  trajectories_.observe(world_);
-  own_.output += seconds_since(t0);
-}
-
 void Runner::write_outputs() {
   const auto t0 = Clock::now();
-  collection_.sort_records();
   output::RunRecord r = record();
-  output::write_file_atomic(dir_ / "bins.csv", output::bins_csv(sim_, collection_, r.materials));
+  const collect::Collection& c = *world_.collection();
+  output::write_file_atomic(dir_ / "bins.csv", output::bins_csv(sim_, c, r.materials));
   output::write_file_atomic(dir_ / "products.csv",
                             output::products_csv(sim_, r.products, r.materials));
-  output::write_file_atomic(dir_ / "crossings.csv", output::crossings_csv(sim_, collection_));
-  output::write_file_atomic(dir_ / "lost.csv", output::lost_csv(sim_, collection_));
+  output::write_file_atomic(dir_ / "crossings.csv", output::crossings_csv(sim_, c));
+  output::write_file_atomic(dir_ / "lost.csv", output::lost_csv(sim_, c));
   if (sim_.output.distribution_svg)
     output::write_file_atomic(dir_ / "distribution.svg",
-                              output::distribution_svg(sim_, collection_, r.materials));
-  steps_.commit();
-  trajectories_.commit();
-  r.own.output += seconds_since(t0);
+                              output::distribution_svg(sim_, c, r.materials));
+  observers_.commit();
+  r.solver.seconds[Stage::Output] += seconds_since(t0);
   r.wall = seconds_since(start_);
   output::add_warnings(r);
   // Last, so "complete" is only on disk once everything else is.
@@ -274,20 +251,22 @@ void Runner::write_outputs() {
 output::RunRecord Runner::record() const {
   output::RunRecord r;
   r.sim = &sim_;
-  r.collection = &collection_;
+  r.collection = world_.collection();
   r.out_dir = dir_.string();
   r.complete = complete_;
   r.reason = complete_ ? std::string() : reason_;
-  r.steps = steps_done_;
+  r.steps = world_.step_count();
   r.time = world_.time();
   r.threads = sim_.model->threads > 0 ? sim_.model->threads : omp_get_max_threads();
   r.wall = seconds_since(start_);
-  r.own = own_;
-  r.solver = steps_.summary();
-  r.energy = energy_.balance();
-  r.frames = trajectories_.frames();
+  r.solver = observers_.solver();
+  // The steps' own, complete only once each step returned, and the writing
+  // outside them.
+  r.solver.seconds[Stage::Output] = output_seconds_;
+  r.energy = observers_.energy();
+  r.frames = observers_.frames();
   r.materials = output::fed_materials(sim_);
-  r.products = output::product_results(sim_, collection_, r.materials);
+  r.products = output::product_results(sim_, *r.collection, r.materials);
   tally_feeds(r);
   tally_active(r);
   return r;
@@ -295,12 +274,12 @@ output::RunRecord Runner::record() const {
 
 void Runner::tally_feeds(output::RunRecord& r) const {
   r.fed.resize(sim_.model->materials.materials().size());
-  for (const auto& feeder : feeders_) {
-    const feed::FeedStats& s = feeder->stats();
-    const Feed& f = feeder->feed();
+  for (const feed::Feeder& feeder : world_.feeders()) {
+    const feed::FeedStats& s = feeder.stats();
+    const Feed& f = feeder.feed();
     for (std::size_t c = 0; c < f.mix.size(); ++c)
       r.fed[std::size_t(f.mix[c].material)] += s.fed[c];
-    r.feeds.push_back({f.name, f.mass_rate > 0.0, feeder->target(world_.time()), s.total(),
+    r.feeds.push_back({f.name, f.mass_rate > 0.0, feeder.target(world_.time()), s.total(),
                        s.retries, s.deferrals});
   }
 }
@@ -310,7 +289,7 @@ void Runner::tally_active(output::RunRecord& r) const {
   r.active.resize(sim_.model->materials.materials().size());
   const Particles& p = world_.particles();
   for (std::size_t i = 0; i < p.size(); ++i)
-    r.active[std::size_t(p.material[i])].add(output::to_mass_units(p.mass[i]));
+    r.active[std::size_t(p.material[i])].add(to_mass_units(p.mass[i]));
 }
 
 }  // namespace

@@ -3,7 +3,7 @@
 #pragma once
 #include <string>
 
-#include "sim/simulation.hpp"
+#include "spec/simulation.hpp"
 
 namespace ces {
 

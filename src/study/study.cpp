@@ -18,7 +18,7 @@
 #include "output/compare.hpp"
 #include "output/files.hpp"
 #include "output/format.hpp"
-#include "dynamics/model.hpp"
+#include "model/model.hpp"
 #include "scene/scene.hpp"
 
 namespace ces::study {

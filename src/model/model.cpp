@@ -1,4 +1,4 @@
-#include "dynamics/model.hpp"
+#include "model/model.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -189,6 +189,12 @@ ParticleShape make_particle_shape(const std::vector<Vec3>& centers, const std::v
   }
   if (frame) *frame = Pose{com, Quat(axes)};
   return s;
+}
+
+double particle_mass(const Model& model, int shape, double scale, int material) {
+  const ParticleShape& s = model.shapes.at(std::size_t(shape));
+  const double density = model.materials.materials().at(std::size_t(material)).density;
+  return density * s.volume * scale * scale * scale;
 }
 
 }  // namespace ces

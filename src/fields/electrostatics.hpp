@@ -1,8 +1,6 @@
-// The separator's force stages (PHYSICS.md §3): air drag, and charging plus
-// electric forces. Each registers with World::add_force_stage, so it runs
-// after this step's collision and before its solve: charges and forces come
-// from this step's positions and contacts, never the previous step's (the
-// public seed code lags them by one step).
+// Charging and electric forces: a force stage (sim/world.hpp runs it after
+// this step's collision and before its solve), so charges and forces come
+// from this step's positions and contacts, never the previous step's.
 //
 // Plain data in, a stage out: a scene compiler fills the specs. Frame as in
 // fields/electric.hpp: drum axis = z through the origin, gravity −y.
@@ -13,31 +11,19 @@
 // Forces act at the centre of mass (no torque). Every particle is updated by its own loop
 // iteration, so charges and forces are bitwise the same for any thread count.
 #pragma once
+#include <cstdint>
 #include <limits>
 #include <optional>
 #include <utility>
 #include <vector>
 
-#include "dynamics/world.hpp"
+#include "collision/contacts.hpp"
 #include "fields/charge.hpp"
 #include "fields/electric.hpp"
+#include "model/model.hpp"
+#include "model/state.hpp"
 
 namespace ces::fields {
-
-// ------------------------------------------------------------------ drag --
-
-enum class DragLaw { Stokes, SchillerNaumann };
-
-// Drag from the particle's velocity relative to still air (PHYSICS §3).
-struct DragSpec {
-  Air air;  // density and viscosity (its permittivity is not used here)
-  DragLaw law = DragLaw::SchillerNaumann;
-};
-
-// Throws std::invalid_argument for a non-positive viscosity or density.
-void add_drag_stage(World& world, DragSpec spec);
-
-// -------------------------------------------------------- electrostatics --
 
 // How a particle shape takes corona charge and is pinned to the drum by its
 // image charge, at scale 1 (lengths scale with Particles::scale, areas with
@@ -146,8 +132,8 @@ struct CoronaZone {
 //
 // Where the charges live: Particles::charge holds a conductor's induced
 // charge and an insulator's or mixed particle's insulating charge (a scene
-// may preset it). The metal part of a mixed particle keeps its induced
-// charge inside the stage.
+// may preset it); Particles::metal_charge the induced charge of a mixed
+// particle's metal part.
 struct ElectrostaticsSpec {
   // The field model has no default, so it is the one constructor argument.
   explicit ElectrostaticsSpec(ElectricField model) : field(std::move(model)) {}
@@ -161,8 +147,34 @@ struct ElectrostaticsSpec {
   double medium_relative_permittivity = Air{}.relative_permittivity;
 };
 
-// Throws std::invalid_argument naming the offending field when the spec does
-// not fit the world's model (body indices, material count, ranges).
-void add_electrostatics_stage(World& world, ElectrostaticsSpec spec);
+// Site of one particle for its charges this step (electrostatics.cpp).
+struct Site;
+
+// The stage: reads this step's contacts, the bodies' motion and the
+// particles' position, orientation, velocity, shape, scale and material;
+// writes their charge, metal_charge and force.
+class ElectrostaticsStage {
+ public:
+  // Throws std::invalid_argument naming the offending field when the spec
+  // does not fit the model (body indices, material count, ranges).
+  ElectrostaticsStage(ElectrostaticsSpec spec, const Model& model);
+  void apply(const Model& model, const Contacts& contacts, const Bodies& bodies,
+             Particles& particles);
+
+ private:
+  void find_touches(const Contacts& c, const Bodies& bodies, const Particles& p, double h);
+  const ElectricalMaterial& material(const Particles& p, std::size_t i) const;
+  Site site(const Particles& p, std::size_t i, const Contacts& c) const;
+  void update(Particles& p, std::size_t i, const Contacts& c, double h) const;
+  Vec3 metal_part(double& charge, const Site& at) const;
+  Vec3 insulating_part(double& charge, const ElectricalMaterial& m, const Site& at,
+                       double h) const;
+
+  ElectrostaticsSpec spec_;
+  std::vector<ShapeElectrics> shapes_;      // per Model shape
+  std::vector<std::int32_t> drum_contact_;  // per particle: touching drum contact, or -1
+  std::vector<std::int32_t> near_contact_;  // per particle: closest drum contact, or -1
+  std::vector<std::uint8_t> brush_touch_;   // per particle
+};
 
 }  // namespace ces::fields

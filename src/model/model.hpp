@@ -1,6 +1,7 @@
 // The compiled, immutable description of a simulation: what a scene compiler
 // builds and the stepper reads. Nothing here knows about YAML or files.
 #pragma once
+#include <cmath>
 #include <limits>
 #include <optional>
 #include <string>
@@ -63,6 +64,11 @@ struct ParticleShape {
 ParticleShape make_particle_shape(const std::vector<Vec3>& centers,
                                   const std::vector<double>& radii,
                                   Pose* frame = nullptr);
+
+// The sphere of a shape's volume V: radius (3V / 4π)^⅓ and diameter
+// (6V / π)^⅓, each computed as written (the two roundings differ).
+inline double equal_volume_radius(double volume) { return std::cbrt(3.0 * volume / (4.0 * kPi)); }
+inline double equal_volume_diameter(double volume) { return std::cbrt(6.0 * volume / kPi); }
 
 enum class BodyKind { Static, Kinematic, Dynamic };
 
@@ -163,6 +169,10 @@ struct DemSettings {
     return std::size_t(material) < materials.size() ? materials[std::size_t(material)] : defaults;
   }
 };
+
+struct Model;
+// Mass of a particle of `shape` at `scale` made of `material` (kg).
+double particle_mass(const Model& model, int shape, double scale, int material);
 
 struct Model {
   double step = 1e-3;  // s
