@@ -1,4 +1,4 @@
-// ces_bench: what issue 7 asks the bench to measure, in one run.
+// ces_bench: the performance targets measured in one run.
 //
 //   ces_bench [--quick] [--out DIR] [--scene SCENE [--scene-set KEY=VALUE]...]
 //             [--no-scene] [--ces-sim PATH]

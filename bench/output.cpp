@@ -1,5 +1,5 @@
 // The CSV (one row per figure: measure, particles, contacts, threads, value,
-// unit) and the report against issue 7's targets.
+// unit) and the report against the performance targets (bench/README.md).
 #include <omp.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -352,7 +352,7 @@ void memory_target(std::ostream& o, const Results& r) {
 }
 
 void target_rows(std::ostream& o, const Results& r) {
-  o << "\n## Targets (issue 7)\n\n| target | figure | status |\n|---|---|---|\n";
+  o << "\n## Targets\n\n| target | figure | status |\n|---|---|---|\n";
   solver_target(o, r);
   step_target(o, r);
   speedup_target(o, r);

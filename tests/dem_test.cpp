@@ -1,4 +1,4 @@
-// DEM baseline (Hertz-Mindlin with damping) against closed forms (issue 6).
+// DEM baseline (Hertz-Mindlin with damping) against closed forms.
 // Each test states its tolerance.
 #include <gtest/gtest.h>
 

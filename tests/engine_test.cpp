@@ -1,4 +1,4 @@
-// Engine checks against closed forms (issue 2). Each test states its tolerance.
+// Engine checks against closed forms. Each test states its tolerance.
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 #include <omp.h>

@@ -1,10 +1,10 @@
 // The separator's force stages in the World (fields/stages.hpp) against the
-// closed forms and regression values of PHYSICS.md §3–§4. Each test states
+// closed forms and regression values of docs/physics.md §3–§4. Each test states
 // its tolerance and assumptions.
 //
 // Frame: drum axis = z through the origin, gravity −y. The drum turns
 // clockwise seen from +z, so its top moves toward +x, where the electrode
-// is (PHYSICS §1); θ is measured from the top in the direction of rotation.
+// is (docs/physics.md §2); θ is measured from the top in the direction of rotation.
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -30,9 +30,9 @@ constexpr double kG = 9.81;
 constexpr double kDeg = kPi / 180.0;
 constexpr double kEps0 = 8.8541878128e-12;
 constexpr double kEpsAir = 1.0006;
-constexpr double kDrumRadius = 0.16;  // PHYSICS §1
+constexpr double kDrumRadius = 0.16;  // docs/physics.md §2
 constexpr double kHalfWidth = 0.15;
-constexpr double kCopper = 8960.0;  // PHYSICS §5
+constexpr double kCopper = 8960.0;  // docs/physics.md §7
 constexpr double kFr4 = 1850.0;
 constexpr double kFr4Permittivity = 4.4;
 
@@ -78,7 +78,7 @@ RigidBody drum(double omega) {
   return b;
 }
 
-// Reference machine of PHYSICS §2.1: static electrode Ø 38 mm, axis 0.267 m
+// Reference machine of docs/physics.md §3.1: static electrode Ø 38 mm, axis 0.267 m
 // from the drum axis at 30° above horizontal, −35 kV.
 ElectricField reference_field() {
   return BipolarField(Drum{kDrumRadius, kHalfWidth},
@@ -123,7 +123,7 @@ double drum_load(const World& w, std::size_t i) {
 }
 
 // Conductor sphere on the grounded drum: induced charge and lift force,
-// written out from PHYSICS §3 (not through fields/charge.hpp).
+// written out from docs/physics.md §5 (not through fields/charge.hpp).
 double induced_charge(double r, double en) {
   return 2.0 / 3.0 * kPi * kPi * kPi * kEps0 * kEpsAir * r * r * en;
 }
@@ -138,14 +138,14 @@ double image_pull(double q, double r) {
 // speed and is followed until it first has no load-bearing drum contact.
 //
 // Assumptions: the particle is carried at drum speed, neither slipping nor
-// rolling, as PHYSICS §4's closed form requires. A flake does not roll; the
+// rolling, as docs/physics.md §5.6's closed form requires. A flake does not roll; the
 // sphere is given infinite inertia to behave like one. Friction μ = 1000:
 // carried rigidly, the particle needs μ N >= m g sin θ, which fails only
 // within ~atan(1/μ) of the lift-off angle (0.06°).
 //
 // "Carrying load": a normal impulse above 2 m g h / μ. Once the particle has
 // left, its contact stays in the list while inside the collision envelope,
-// and the CCP's cone relaxation (DESIGN §4) leaves it on the friction cone
+// and the CCP's cone relaxation (Anitescu and Tasora, 2010) leaves it on the friction cone
 // with γ_n = |γ_t| / μ <= m g h / μ (measured: 0.1 % of m g h). The
 // threshold makes the detection early by at most 2/μ of m g in N: 0.15°.
 constexpr double kCarryFriction = 1000.0;
@@ -192,7 +192,7 @@ double lift_off_angle(double omega, bool electric) {
   return -1.0;
 }
 
-// First θ where m ω² ρ + F_e,n(θ) = m g cos θ (PHYSICS §4) with the centre
+// First θ where m ω² ρ + F_e,n(θ) = m g cos θ (docs/physics.md §5.6) with the centre
 // at ρ = R + r (the closed form's R is the centre's radius: R + r used
 // consistently), F_e,n the lift force in the field at the centre: scanned
 // at 0.5°, then bisected.
@@ -215,7 +215,7 @@ double closed_form_lift_off(double omega, bool electric) {
   return 0.5 * (lo + hi);
 }
 
-// PHYSICS §4's table (R + r instead of R moves these by < 0.05°), then
+// docs/physics.md §5.6's table (R + r instead of R moves these by < 0.05°), then
 // the simulated angle against the closed form. Tolerance 1°.
 TEST(LiftOff, CopperLeavesDrumWhereCentrifugalForceBeatsGravity) {
   const std::array<std::array<double, 2>, 3> table = {{{30.0, 80.7}, {44.8, 69.0}, {60.0, 49.9}}};
@@ -226,7 +226,7 @@ TEST(LiftOff, CopperLeavesDrumWhereCentrifugalForceBeatsGravity) {
   }
 }
 
-// With the field of PHYSICS §2.1 the lift force adds to the centrifugal
+// With the field of docs/physics.md §3.1 the lift force adds to the centrifugal
 // force: earlier lift-off, where the closed form with F_e,n says. The shift
 // is checked to exceed the tolerance, so the test tells the two apart.
 TEST(LiftOff, ElectricLiftMakesCopperLeaveEarlier) {
@@ -294,7 +294,7 @@ double ode_landing(const Launch& l, DragLaw law) {
 // setups below, 2.0 mm for the steep launch; 0.5 ms halves that.
 constexpr double kFlightStep = 5e-4;
 
-// PHYSICS §4's setup, reconstructed: d = 1 mm released from the drum top
+// docs/physics.md §5.6's setup, reconstructed: d = 1 mm released from the drum top
 // (0, R) at the surface speed ωR, horizontally, at 100 rpm (the ODE gives
 // 0.5112, 0.5034, 0.5039, 0.4679 m). The regression values are printed to
 // 1 mm, so the ODE must match them within 0.5 mm; the World must match the
@@ -384,7 +384,7 @@ void add_on_drum(World& w, int material, double theta) {
 
 // Pauthenier's law in a corona zone over the drum top, with the field model's
 // |E| at the particle (0.68 kV/cm: τ_c = 24 ms at J = 1e-4 A/m²), sampled
-// every 10 ms for 0.1 s against Q_s t/(t + τ_c) from PHYSICS §3 written out.
+// every 10 ms for 0.1 s against Q_s t/(t + τ_c) from docs/physics.md §5 written out.
 // A particle 20° from the top, outside the zone, stays neutral. Tolerance
 // 1 % of Q(t) (the stage's update is exact for a constant field; the
 // particle moves by less than 1 µm, so E does not change measurably).
@@ -416,7 +416,7 @@ TEST(Corona, PauthenierGrowthInZone) {
 }
 
 // The seed's corona zone, 80-100° from the top and 5 mm deep, charging to
-// saturation at once in 4.13 kV/cm (with space charge, PHYSICS §3 table).
+// saturation at once in 4.13 kV/cm (with space charge, docs/physics.md §5 table).
 CoronaZone saturation_zone() {
   CoronaZone zone;
   zone.angle_begin = 80.0 * kDeg;
@@ -519,7 +519,7 @@ TEST(Pinning, Fr4StaysPinnedAboveImageForceThresholdAndFliesBelow) {
 
 // ------------------------------------------------------------------- brush --
 
-// The brush of PHYSICS §1 (radius 53 mm, at 9 o'clock touching the drum),
+// The brush of docs/physics.md §2 (radius 53 mm, at 9 o'clock touching the drum),
 // still. A charged FR-4 sphere dropped onto it loses its charge at the first
 // touch; one dropped onto the drum keeps it (no decay). No field, so only
 // gravity moves them. Exact.
@@ -554,7 +554,7 @@ TEST(Brush, TouchRemovesInsulatorCharge) {
 
 
 // Forces in the step they are computed, from that step's contacts, against
-// PHYSICS §3 written out; then the frozen charges in flight. Gravity off,
+// docs/physics.md §5 written out; then the frozen charges in flight. Gravity off,
 // reference field, still drum. Tolerance 1e-12 relative.
 //  0 copper touching the drum at 60° from the top (polar 30°, under the
 //    electrode): charge Q_c(E·n) and lift force 0.832 Q_c (E·n) n at once;
@@ -659,7 +659,7 @@ std::shared_ptr<Model> flake_model(std::vector<MaterialSpec>& mats) {
 
 // Flat shapes take the face law, compact ones keep the sphere's. Areas by
 // the stage's grid count within 0.2 % of the exact union of discs; the
-// charging radius from S = 2A + 2√(πA) V/A written out (PHYSICS-free: the
+// charging radius from S = 2A + 2√(πA) V/A written out (independent of the code: the
 // assumption stated in stages.hpp), 1e-12 relative given the area.
 TEST(FlakeElectrics, FaceAreaChargingRadiusAndTilt) {
   const ParticleShape flake = unit_flake();
@@ -712,7 +712,7 @@ TEST(FlakeElectrics, FaceAreaChargingRadiusAndTilt) {
 
 // A charged FR-4 flake (scale 2 mm: 2 mm across, 0.4 mm thick) touching a
 // still drum on its top, in no field and without gravity: lying flat it is
-// pulled by Q² / (2 ε0 εr A) along −n (PHYSICS §3, written out here with
+// pulled by Q² / (2 ε0 εr A) along −n (docs/physics.md §5, written out here with
 // A = 19 π (0.1 s)²); stood on its rim it is pulled by the sphere law of its
 // equal-volume sphere. Tolerance 0.2 % (the stage's area count).
 TEST(FlakeElectrics, ImageForceOfAFlakeIsTheFaceLawLyingFlat) {

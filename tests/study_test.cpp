@@ -1,4 +1,4 @@
-// `ces-sim study` (issue 6) on tests/scenes/study_drop.yaml: free flight to a
+// `ces-sim study` on tests/scenes/study_drop.yaml: free flight to a
 // collector, so the landing position is known in closed form.
 #include <gtest/gtest.h>
 

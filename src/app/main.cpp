@@ -2,7 +2,7 @@
 //
 //   ces-sim SCENE [-o DIR] [--set key.path=value]... [--seed N] [--threads N] [--quiet]
 //   ces-sim validate SCENE [--set ...]
-//   ces-sim schema
+//   ces-sim schema [--markdown]
 //   ces-sim compare DIR_A DIR_B [--tol-count N] [--tol-mass F] [--tol-w1 MM]
 //   ces-sim study SCENE --vary key=v1,v2... [--reference DIR] [-o DIR] [--jobs N]
 //                 [--case K] [--list-cases]
@@ -28,6 +28,7 @@
 #include "output/compare.hpp"
 #include "output/files.hpp"
 #include "scene/scene.hpp"
+#include "scene/schema_doc.hpp"
 #include "sim/run.hpp"
 #include "study/study.hpp"
 
@@ -55,6 +56,7 @@ struct Args {
   std::optional<std::uint64_t> seed;
   std::optional<int> threads;
   bool quiet = false;
+  bool markdown = false;  // schema: the Markdown reference instead of the JSON Schema
   std::string dir_a, dir_b;
   ces::output::CompareOptions tolerances;
 };
@@ -189,7 +191,9 @@ int dispatch(const CLI::App& app, const CLI::App* validate_cmd, const CLI::App* 
   try {
     if (validate_cmd->parsed()) return validate(args);
     if (schema_cmd->parsed()) {
-      std::fputs(ces::scene::schema_text().c_str(), stdout);
+      const std::string text =
+          args.markdown ? ces::scene::schema_markdown() : ces::scene::schema_text();
+      std::fputs(text.c_str(), stdout);
       return kSuccess;
     }
     if (compare_cmd->parsed()) return compare(args);
@@ -232,6 +236,8 @@ int main(int argc, char** argv) {
   add_scene_options(*validate_cmd, args);
 
   CLI::App* schema_cmd = app.add_subcommand("schema", "Print the scene JSON Schema");
+  schema_cmd->add_flag("--markdown", args.markdown,
+                       "Print the scene format as a Markdown reference (docs/scene-format.md)");
 
   CLI::App* compare_cmd =
       app.add_subcommand("compare", "Do two output folders agree within tolerances?");

@@ -7,6 +7,7 @@
 #include "common/math.hpp"
 #include "feed/size_distribution.hpp"
 #include "geometry/shapes.hpp"
+#include "model/defaults.hpp"
 
 namespace ces {
 
@@ -34,7 +35,7 @@ struct Feed {
   Vec3 velocity = Vec3::Zero();    // mean initial velocity
   double velocity_spread = 0.0;    // m/s, uniform per component in [-s, s]
   bool random_orientation = true;
-  int max_attempts = 20;           // spawn retries before a particle is deferred
+  int max_attempts = defaults::kFeedMaxAttempts;  // spawn retries before a particle is deferred
   std::vector<FeedComponent> mix;
 };
 

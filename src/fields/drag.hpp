@@ -15,7 +15,7 @@ namespace ces::fields {
 
 enum class DragLaw { Stokes, SchillerNaumann };
 
-// Drag from the particle's velocity relative to still air (PHYSICS §3).
+// Drag from the particle's velocity relative to still air (docs/physics.md §6).
 struct DragSpec {
   Air air;  // density and viscosity (its permittivity is not used here)
   DragLaw law = DragLaw::SchillerNaumann;

@@ -31,8 +31,7 @@ void require(bool ok, const std::string& what) {
 // (semi-implicit Euler moves it along a tangent; the solve pulls it back):
 // 3 µm at 60 rpm and 1 ms, 14 µm at 128 rpm. Twice that is allowed, on top
 // of the fraction of r. A particle SLIDING on the body rides higher: the
-// velocity-level cone complementarity (Anitescu–Tasora relaxation, DESIGN
-// §4) gives a sliding contact the normal velocity μ |v_t|, so it starts each
+// velocity-level cone complementarity (the relaxation of Anitescu and Tasora, 2010) gives a sliding contact the normal velocity μ |v_t|, so it starts each
 // step μ |v_t| h off the surface (50 µm for an FR-4 flake landing on the
 // drum 0.2 m/s faster than its surface, at μ = 0.5 and 0.5 ms: 17 % of its
 // spheres' radius), and a sliding conductor is still in contact with the
@@ -296,7 +295,7 @@ Site ElectrostaticsStage::site(const Particles& p, std::size_t i, const Contacts
 }
 
 // One particle: both parts' charges for this step, then the w-weighted
-// sum of their forces (PHYSICS §3).
+// sum of their forces (docs/physics.md §5).
 void ElectrostaticsStage::update(Particles& p, std::size_t i, const Contacts& c, double h) const {
   const ElectricalMaterial& m = material(p, i);
   const Site at = site(p, i, c);

@@ -31,7 +31,7 @@ namespace ces::fields {
 //
 // Compact shapes (spheres, grains, rods, most clusters) use the sphere of
 // equal volume, r = (3V/4π)^⅓: Pauthenier's Q_s = 4π ε0 r² p E and the
-// image force Q² / (4π ε0 εr (2r)²) of a charge at the centre (PHYSICS §3).
+// image force Q² / (4π ε0 εr (2r)²) of a charge at the centre (docs/physics.md §5).
 //
 // Flat shapes (the built-in flake up to aspect 1/3; any cluster at least
 // three times as wide as thick both ways across its thinnest principal
@@ -70,7 +70,7 @@ inline constexpr double kNoDecay = std::numeric_limits<double>::infinity();
 // w = 1 a conductor (induced charge on the drum), w = 0 an insulator (corona
 // charge, decay, brush), in between a mixed particle (e.g. a PCB fragment)
 // that carries both charges and feels the w-weighted average of the two
-// forces (PHYSICS §3).
+// forces (docs/physics.md §5).
 struct ElectricalMaterial {
   double metal_fraction = 0.0;         // w in [0, 1]
   double relative_permittivity = 1.0;  // εr of the insulating part (Pauthenier)
@@ -102,11 +102,11 @@ struct CoronaZone {
   // |E| that charges the particle, V/m; unset: the field model's |E| at the
   // particle (the static-electrode field has no corona space charge).
   std::optional<double> field;
-  double current_density = 1e-4;  // J, A/m² (Pauthenier only)
+  double current_density = defaults::kCoronaCurrentDensity;  // J, A/m² (Pauthenier only)
   double ion_sign = -1.0;         // polarity of the corona ions: ±1
 };
 
-// Charging and electric forces (PHYSICS §3). Per particle and step:
+// Charging and electric forces (docs/physics.md §5). Per particle and step:
 //  - metal part: while touching the grounded drum, Q_c = (2/3)π³ ε0 εr r²
 //    E·n with n the contact normal out of the drum, and the lift force
 //    0.832 Q_c (E·n) n; off the drum, the last Q_c is kept and the force is

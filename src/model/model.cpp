@@ -92,9 +92,8 @@ class UnionIntegrator {
 
  private:
   // A cell's tests go over the spheres that reach its parent only, in
-  // index order (near_[depth + 1]): a flake's 19 spheres were all tested
-  // in every cell, and this integration took 0.75 s of each start of
-  // ces_pcb.yaml. A sphere dropped from the list is farther from the
+  // index order (near_[depth + 1]), not over all of a cluster's spheres in
+  // every cell. A sphere dropped from the list is farther from the
   // parent than its radius by a margin far above rounding, so it cannot
   // touch or contain any point of a child: the same cells are added in the
   // same order, to the bit.

@@ -935,7 +935,7 @@ class Compiler {
     p.max += Vec2::Constant(0.2 * r);
   }
 
-  // What the run has to build (DESIGN.md §1): absent sections cost nothing.
+  // What the run has to build (docs/architecture.md): absent sections cost nothing.
   void list_components() {
     const Model& m = *model_;
     const auto any_body = [&](BodyKind kind) {

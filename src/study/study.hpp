@@ -1,4 +1,4 @@
-// `ces-sim study`: error against run time (DESIGN.md §9, issue 6).
+// `ces-sim study`: error against run time.
 //
 // A study runs one scene over every combination of --vary axes (each a list
 // of --set values), each case a normal run in DIR/case_K, and measures every
