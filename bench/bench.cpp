@@ -12,7 +12,7 @@
 // - grid against Bullet broadphase;
 // - with --scene, a scene end to end through ces-sim (wall time, stages).
 // Writes DIR/bench.csv (one row per figure) and DIR/report.md (the figures
-// against the targets), and prints the report.
+// against the targets of bench/README.md), and prints the report.
 // --quick runs smaller sizes (under a minute) and, unless --scene-set is
 // given, the scene to 0.1 s only; its figures are for checking the bench.
 // --no-scene cancels an earlier --scene (bench/run passes one).
@@ -102,10 +102,8 @@ BedRun median(std::vector<BedRun> runs) {
 }
 
 // The speed-up's rounds are spread over the whole bench, one between each of
-// its sections: a VM's second core can run short for a minute (both misses
-// of 2026-12-03 were three rounds taken back to back inside such a phase),
-// so rounds taken together sample one phase, and rounds spread out sample
-// the machine.
+// its sections: a VM's second core can run short for a minute, so rounds
+// taken together sample one phase, and rounds spread out sample the machine.
 constexpr int kSpeedupRounds = 5;
 
 class Speedup {
