@@ -218,7 +218,18 @@ json part_json(const Placed& p) {
     j["cylinder_fit"]["other_area_fraction"] = p.fit->other_fraction;
     j["cylinder_fit"]["used"] = p.cylinder_source == "fit";
   }
-  if (p.box) j["box"] = {{"center", vec_json(p.box->center)}, {"size", vec_json(p.box->size)}};
+  if (p.box_fit) {
+    const Box& b = p.box_fit->box;
+    const Eigen::AngleAxisd turn(b.frame);
+    j["box_fit"] = {
+        {"center", vec_json(b.center)},
+        {"size", vec_json(b.size)},
+        {"rotation", {{"axis", vec_json(turn.axis())}, {"angle_deg", turn.angle() * 180.0 / kPi}}},
+        {"volume_error", p.box_fit->volume_error},
+        {"face_error", p.box_fit->face_error},
+        {"other_area", p.box_fit->other_area},
+        {"used", p.box.has_value()}};
+  }
   if (!p.mesh_file.empty()) j["mesh_file"] = p.mesh_file;
   j["mesh"] = p.quality.to_json();
   return j;

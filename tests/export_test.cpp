@@ -8,14 +8,17 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "fit.hpp"
 #include "mesh.hpp"
+#include "parts.hpp"
 #include "support.hpp"
 
 #ifdef CES_EXPORT_HAVE_OCCT
@@ -90,6 +93,8 @@ std::vector<Triangle> box(const Vec3& lo, const Vec3& hi) {
   for (const auto& k : f) t.push_back({v[k[0]], v[k[1]], v[k[2]]});
   return t;
 }
+
+std::vector<Triangle> centred_box(const Vec3& size) { return box(-0.5 * size, 0.5 * size); }
 
 // The test machine in mm: a drum along z (R 160, 300 long), a box hopper
 // above it and a plate splitter beside it.
@@ -209,6 +214,16 @@ YAML::Node body(const Exported& e, const std::string& name) {
 }
 
 Vec3 vec(const YAML::Node& n) { return {n[0].as<double>(), n[1].as<double>(), n[2].as<double>()}; }
+
+// The rotation a body's pose gives (identity without one).
+ces::Mat3 pose_rotation(const YAML::Node& body) {
+  const YAML::Node r = body["pose"]["rotation"];
+  if (!r) return ces::Mat3::Identity();
+  const std::string angle = r["angle"].as<std::string>();
+  EXPECT_TRUE(angle.ends_with(" deg")) << angle;
+  return Eigen::AngleAxisd(std::stod(angle) * kPi / 180, vec(r["axis"]).normalized())
+      .toRotationMatrix();
+}
 
 const nlohmann::json& report_part(const Exported& e, const std::string& name) {
   for (const auto& p : e.report["parts"])
@@ -475,6 +490,42 @@ TEST(ExportStl, ElectrodesAndTheDrumFrame) {
   expect_validates(e);
 }
 
+// Splitter plates tilted as drawn, in float STL coordinates: each a box body
+// of the plate's size, turned as the plate is (up to the box's symmetry).
+TEST(ExportStl, TiltedSplittersAreBoxes) {
+  const fs::path work = fresh_dir("export_stl_tilted");
+  write_stl_machine(work / "cad");
+  const std::vector<double> tilts = {-20, 27, 60, 89};
+  const Vec3 size(4, 150, 300);
+  for (std::size_t i = 0; i < tilts.size(); ++i) {
+    const Eigen::AngleAxisd turn(tilts[i] * kPi / 180, Vec3::UnitZ());
+    std::vector<Triangle> t = centred_box(size);
+    for (Triangle& tri : t)
+      for (Vec3& v : tri) v = turn * v + Vec3(250.0 + 60 * double(i), -200, 0);
+    write_stl(work / "cad" / ("splitter_" + std::to_string(i) + ".stl"), t);
+  }
+  const Exported e = run(work / "cad", machine_annotations("[0, 0, -1]"), work);
+  ASSERT_EQ(e.code, 0) << e.err;
+  EXPECT_EQ(e.err.find("kept as a mesh"), std::string::npos) << e.err;
+  for (std::size_t i = 0; i < tilts.size(); ++i) {
+    SCOPED_TRACE(tilts[i]);
+    const YAML::Node b = body(e, "splitter_" + std::to_string(i));
+    ASSERT_TRUE(b["geometry"]["box"]) << b;
+    const Vec3 got = vec(b["geometry"]["box"]["size"]);
+    const ces::Mat3 frame = pose_rotation(b);
+    const ces::Mat3 r = Eigen::AngleAxisd(tilts[i] * kPi / 180, Vec3::UnitZ()).toRotationMatrix();
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Index j = 0;
+      (frame.transpose() * r.col(k)).cwiseAbs().maxCoeff(&j);
+      EXPECT_GT(std::abs(frame.col(j).dot(r.col(k))), 1.0 - 1e-9) << "edge " << k;
+      EXPECT_NEAR(got[j], 1e-3 * size[k], 1e-6) << "edge " << k;
+    }
+    EXPECT_LT((vec(b["pose"]["position"]) - Vec3(0.25 + 0.06 * double(i), -0.2, 0)).norm(), 1e-6);
+    EXPECT_TRUE(report_part(e, "splitter_" + std::to_string(i))["box_fit"]["used"].get<bool>());
+  }
+  expect_validates(e);
+}
+
 // --- bad input -------------------------------------------------------------
 
 TEST(ExportBadInput, UnreadableMeshesAndMissingInput) {
@@ -601,23 +652,143 @@ TEST(ExportMesh, CountsOpenAndNonManifoldEdges) {
   EXPECT_EQ(clean(fin, 1e-9).non_manifold_edges, 1u);
 }
 
-TEST(ExportFit, RotatedBoxIsABoxAndAnOpenOneIsNot) {
-  std::vector<Triangle> t = box({-0.002, -0.075, -0.15}, {0.002, 0.075, 0.15});
-  const Eigen::AngleAxisd turn(27 * kPi / 180, Vec3::UnitZ());
+// A part as CAD exports it to STL: float coordinates in mm (here 700 mm
+// from the origin, where a float is off by up to 3e-5 mm), read as metres.
+Mesh stl_part(std::vector<Triangle> t, const Eigen::AngleAxisd& turn,
+              const Vec3& at = Vec3(737.7, 659.1, -120.0)) {
   for (Triangle& tri : t)
-    for (Vec3& v : tri) v = turn * v + Vec3(0.2377, -0.1409, 0);
+    for (Vec3& v : tri) v = 1e-3 * (turn * v + at).cast<float>().cast<double>();
   Mesh m = soup(t);
-  clean(m, 1e-12);
-  const auto b = match_box(m, 1e-9);
-  ASSERT_TRUE(b);
-  EXPECT_LT((b->size - Vec3(0.004, 0.15, 0.3)).norm(), 1e-12);
-  EXPECT_LT((b->center - Vec3(0.2377, -0.1409, 0)).norm(), 1e-12);
-  EXPECT_NEAR(Eigen::AngleAxisd(b->frame).angle(), 27 * kPi / 180, 1e-12);
-  t.pop_back();
-  t.pop_back();  // no left face
-  Mesh open = soup(t);
-  clean(open, 1e-12);
-  EXPECT_FALSE(match_box(open, 1e-9));
+  clean(m, weld_tolerance(m));
+  return m;
+}
+
+// The fitted box is the box of `size` (mm) turned by `turn` about `at`:
+// each of its edges along a column of the frame, with its length, to 1 um.
+void expect_box(const BoxFit& f, const Vec3& size, const Eigen::AngleAxisd& turn,
+                const Vec3& at = Vec3(737.7, 659.1, -120.0)) {
+  EXPECT_TRUE(f.within(kBoxTolerance))
+      << f.volume_error << " " << f.face_error << " " << f.other_area;
+  // Float coordinates, not the shape: up to 3e-5 mm on each side of a 3 mm
+  // plate is 2e-5 of its thickness.
+  EXPECT_LT(f.volume_error, 3e-5);
+  EXPECT_LT(f.face_error, 3e-5);
+  EXPECT_LT(f.other_area, 1e-12);
+  EXPECT_LT((f.box.center - 1e-3 * at).norm(), 1e-6);
+  EXPECT_NEAR(f.box.frame.determinant(), 1.0, 1e-12);
+  const ces::Mat3 r = turn.toRotationMatrix();
+  for (int k = 0; k < 3; ++k) {
+    Eigen::Index j = 0;
+    (f.box.frame.transpose() * r.col(k)).cwiseAbs().maxCoeff(&j);
+    EXPECT_GT(std::abs(f.box.frame.col(j).dot(r.col(k))), 1.0 - 1e-9) << "edge " << k;
+    EXPECT_NEAR(f.box.size[j], 1e-3 * size[k], 1e-6) << "edge " << k;
+  }
+}
+
+// The reference machine's second splitter is tilted 27 degrees; a user's
+// -20. Plates, a square plate (two faces alike: the normals' principal axes
+// leave a plane) and a cube (all alike) at many tilts, about z and about
+// oblique axes.
+TEST(ExportFit, BoxesAtAnyTiltAreBoxes) {
+  const std::vector<Vec3> sizes = {{4, 150, 300}, {3, 120, 100}, {4, 150, 150}, {50, 50, 50}};
+  const std::vector<Eigen::AngleAxisd> turns = {{0.0, Vec3::UnitZ()},
+                                                {-20 * kPi / 180, Vec3::UnitZ()},
+                                                {27 * kPi / 180, Vec3::UnitZ()},
+                                                {45 * kPi / 180, Vec3::UnitZ()},
+                                                {60 * kPi / 180, Vec3::UnitZ()},
+                                                {89 * kPi / 180, Vec3::UnitZ()},
+                                                {135 * kPi / 180, Vec3::UnitZ()},
+                                                {-27 * kPi / 180, Vec3::UnitX()},
+                                                {40 * kPi / 180, Vec3(1, 1, 1).normalized()},
+                                                {1.0, Vec3(1, 2, 3).normalized()}};
+  for (const Vec3& size : sizes)
+    for (const Eigen::AngleAxisd& turn : turns) {
+      SCOPED_TRACE(testing::Message()
+                   << "size " << size.transpose() << ", " << turn.angle() * 180 / kPi
+                   << " deg about " << turn.axis().transpose());
+      const auto f = fit_box(stl_part(centred_box(size), turn));
+      ASSERT_TRUE(f);
+      expect_box(*f, size, turn);
+    }
+}
+
+// Four quads around a rectangular hole through a plate (x by y, thickness
+// t along z, centred on the origin): the ring's top and bottom, the outer
+// sides and the hole's walls.
+std::vector<Triangle> plate_with_hole(double x, double y, double t, double hx, double hy) {
+  std::vector<Triangle> out;
+  const auto quad = [&](const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+    out.push_back({a, b, c});
+    out.push_back({a, c, d});
+  };
+  const auto corner = [](double w, double h, int i, double z) {
+    return Vec3((i == 1 || i == 2 ? 0.5 : -0.5) * w, (i >= 2 ? 0.5 : -0.5) * h, z);
+  };
+  for (int i = 0; i < 4; ++i) {
+    const int j = (i + 1) % 4;
+    for (double z : {-0.5 * t, 0.5 * t})
+      quad(corner(x, y, i, z), corner(x, y, j, z), corner(hx, hy, j, z), corner(hx, hy, i, z));
+    for (const auto& [w, h] : {std::pair{x, y}, std::pair{hx, hy}})
+      quad(corner(w, h, i, -0.5 * t), corner(w, h, j, -0.5 * t), corner(w, h, j, 0.5 * t),
+           corner(w, h, i, 0.5 * t));
+  }
+  return out;
+}
+
+// A right triangle (legs a along x, b along y) drawn out along z.
+std::vector<Triangle> wedge(double a, double b, double length) {
+  const Vec3 p[3] = {{0, 0, 0}, {a, 0, 0}, {0, b, 0}};
+  const Vec3 l(0, 0, length);
+  std::vector<Triangle> t = {{p[0], p[2], p[1]}, {p[0] + l, p[1] + l, p[2] + l}};
+  for (int i = 0; i < 3; ++i) {
+    const Vec3 &u = p[i], &v = p[(i + 1) % 3];
+    t.push_back({u, v, v + l});
+    t.push_back({u, v + l, u + l});
+  }
+  return t;
+}
+
+// What is not a box is measured against its box: the errors are the
+// missing (or extra) volume and face area, exactly.
+TEST(ExportFit, WhatIsNotABoxMissesItsBox) {
+  const Eigen::AngleAxisd tilt(27 * kPi / 180, Vec3::UnitZ());
+  // A 100 x 10 mm slot through a 150 x 300 x 4 plate: 2.2 % of its volume
+  // gone, and its long walls add a third to the plate's 300 x 4 sides.
+  const auto slot = fit_box(stl_part(plate_with_hole(150, 300, 4, 10, 100), tilt));
+  ASSERT_TRUE(slot);
+  EXPECT_FALSE(slot->within(kBoxTolerance));
+  EXPECT_NEAR(slot->volume_error, 1000.0 / 45000.0, 1e-5);
+  EXPECT_NEAR(slot->face_error, 400.0 / 1200.0, 1e-5);
+  EXPECT_NEAR(slot->other_area, 0.0, 1e-12);
+  // A 2 x 2 mm hole: 0.009 % of the volume, within the tolerance, but its
+  // walls add 1.3 % to the plate's 150 x 4 sides.
+  const auto hole = fit_box(stl_part(plate_with_hole(150, 300, 4, 2, 2), tilt));
+  ASSERT_TRUE(hole);
+  EXPECT_NEAR(hole->volume_error, 4.0 / 45000.0, 1e-6);
+  EXPECT_NEAR(hole->face_error, 8.0 / 600.0, 1e-6);
+  EXPECT_FALSE(hole->within(kBoxTolerance));
+  // A wedge: any box around a triangular prism has at least twice its
+  // volume, and its slope faces none of the box's faces.
+  const auto half = fit_box(stl_part(wedge(40, 30, 100), tilt));
+  ASSERT_TRUE(half);
+  EXPECT_GE(half->volume_error, 0.5 - 1e-6);
+  EXPECT_GT(half->other_area, 0.1);
+  // An open box: one face has half its area (one triangle of two).
+  std::vector<Triangle> open = centred_box({4, 150, 300});
+  open.pop_back();
+  const auto lid = fit_box(stl_part(open, tilt));
+  ASSERT_TRUE(lid);
+  EXPECT_NEAR(lid->face_error, 0.5, 1e-5);
+  // Two plates side by side, 10 mm apart: a third of their box is empty.
+  std::vector<Triangle> two = box({0, 0, 0}, {4, 150, 300});
+  for (const Triangle& t : box({14, 0, 0}, {18, 150, 300})) two.push_back(t);
+  const auto pair = fit_box(stl_part(two, tilt));
+  ASSERT_TRUE(pair);
+  EXPECT_NEAR(pair->volume_error, 10.0 / 18.0, 1e-5);
+  // A drum.
+  const auto drum = fit_box(stl_part(cylinder(160, 300, 96), tilt));
+  ASSERT_TRUE(drum);
+  EXPECT_FALSE(drum->within(kBoxTolerance));
 }
 
 TEST(ExportFit, CylinderAlongAnyAxis) {
