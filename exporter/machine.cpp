@@ -15,6 +15,9 @@ namespace {
 // m read as mm), not a real separator.
 constexpr double kLargestPart = 20.0;      // m
 constexpr double kSmallestMachine = 0.01;  // m
+// A separator's drum is centimetres to decimetres in radius: over a metre
+// is CAD in mm read as inches or centimetres.
+constexpr double kLargestDrumRadius = 1.0;  // m
 
 std::string list_names(const std::vector<std::string>& names) {
   std::string s;
@@ -213,6 +216,11 @@ void check_units(const Machine& m, const UnitChoice& units) {
                        " across, so the units look wrong: the CAD was read in " + units.how +
                        unit_suggestion(all.size().maxCoeff(), units));
   }
+  for (const Placed& p : m.parts)
+    if (p.rule->role == Role::Drum && p.cylinder && p.cylinder->radius > kLargestDrumRadius)
+      throw InputError(label(p) + " has a radius of " + metres(p.cylinder->radius) +
+                       ", so the units look wrong: the CAD was read in " + units.how +
+                       unit_suggestion(all.size().maxCoeff(), units));
   if (!all.empty() && all.size().maxCoeff() < kSmallestMachine)
     throw InputError("the machine is " + metres(all.size().maxCoeff()) +
                      " across, so the units look wrong: the CAD was read in " + units.how +

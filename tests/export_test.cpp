@@ -357,6 +357,26 @@ TEST(ExportRoundTrip, ReferenceMachineRunsLikeCesPcb) {
       ces::test::ces_sim("compare " + (work / "ref").string() + " " + (work / "exp").string());
   EXPECT_EQ(cmp.code, 0) << cmp.out << cmp.err;
 }
+// Without `frame`, the reference CAD (z up, the drum along -y) is refused
+// with the frame that fixes it.
+TEST(ExportBadInput, ReferenceStepWithoutFrame) {
+  const fs::path root = CES_SOURCE_DIR;
+  const fs::path work = fresh_dir("export_step_no_frame");
+  std::string annotations = read_text(root / "meshes/ces/annotations.yaml");
+  const std::size_t at = annotations.find("\nframe:");
+  ASSERT_NE(at, std::string::npos);
+  annotations.erase(at + 1, annotations.find('\n', at + 1) - at);
+  const Exported e = run(root / "meshes/ces/ces_machine.step", annotations, work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find("drum 'drum' is centred at [0.5, 0, 0.8] along [0, 1, 0] (scene frame)"),
+            std::string::npos)
+      << e.err;
+  EXPECT_NE(e.err.find("expected frame: {origin: drum, up: [0, 0, 1]} in the annotations"),
+            std::string::npos)
+      << e.err;
+  expect_nothing_written(e);
+}
+
 #else
 TEST(ExportStep, WithoutOpenCascadeStepIsAClearError) {
   const fs::path work = fresh_dir("export_no_occt");
@@ -583,6 +603,92 @@ TEST(ExportBadInput, UnitsThatLookWrong) {
   EXPECT_EQ(large.code, 2);
   EXPECT_NE(large.err.find("drum 'drum' is 320 m across"), std::string::npos) << large.err;
   EXPECT_NE(large.err.find("set units: mm"), std::string::npos) << large.err;
+}
+
+// `units: in` on CAD drawn in mm makes a drum 4 m in radius: named as the
+// unit slip it is, with the unit that fits.
+TEST(ExportBadInput, InchesOnAMillimetreModel) {
+  const fs::path work = fresh_dir("export_bad_inches");
+  write_stl_machine(work / "cad");
+  const Exported e = run(work / "cad", "units: in\n" + machine_annotations("[0, 0, 1]"), work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find("drum 'drum' has a radius of 4.064 m, so the units look wrong: the CAD "
+                       "was read in in (units in the annotations); if the CAD is in mm, set "
+                       "units: mm"),
+            std::string::npos)
+      << e.err;
+  expect_nothing_written(e);
+}
+
+// The CAD's drum along its y (z up): the field models need it on z, and the
+// message gives the frame that puts it there.
+TEST(ExportBadInput, MachineDrawnInAnotherFrame) {
+  const fs::path work = fresh_dir("export_bad_frame");
+  fs::create_directories(work / "cad");
+  const Eigen::AngleAxisd lay(kPi / 2, Vec3::UnitX());  // CAD z up: the drum along y
+  const auto laid = [&](std::vector<Triangle> t, const Vec3& at) {
+    for (Triangle& tri : t)
+      for (Vec3& v : tri) v = lay * v + at;
+    return t;
+  };
+  const double a = 30 * kPi / 180;
+  write_stl(work / "cad" / "drum.stl", laid(cylinder(160, 300, 256), Vec3(0, 0, 800)));
+  write_stl(work / "cad" / "electrode.stl",
+            laid(cylinder(19, 300, 128), Vec3(267 * std::cos(a), 0, 800 + 267 * std::sin(a))));
+  const std::string parts =
+      "parts:\n"
+      "  drum: {role: drum, material: steel, speed: 44.8 rpm, rotation_axis: [0, 1, 0]}\n"
+      "  electrode: {role: electrode, voltage: -35 kV}\n" +
+      std::string(kSceneKeys);
+  const Exported e = run(work / "cad", parts, work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find("annotations.yaml:2:3: drum 'drum' is centred at [0, 0, 0.8] along [0, 1, "
+                       "0] (scene frame), but the field models need the drum's axis on z through "
+                       "the origin; expected frame: {origin: drum, up: [0, 0, 1]} in the "
+                       "annotations"),
+            std::string::npos)
+      << e.err;
+  expect_nothing_written(e);
+  const Exported fixed = run(work / "cad", "frame: {origin: drum, up: [0, 0, 1]}\n" + parts, work);
+  ASSERT_EQ(fixed.code, 0) << fixed.err;
+  EXPECT_NEAR(fixed.scene["electrostatics"]["electrodes"][0]["polar"]["distance"].as<double>(),
+              0.267, 1e-6);
+}
+
+// A voltage or a drum speed without a unit would be read in SI (volts,
+// rad/s): "-30" meant as kV, "44.8" meant as rpm. Refused, with the unit.
+TEST(ExportBadInput, VoltageAndSpeedWithoutUnit) {
+  const fs::path work = fresh_dir("export_bad_unitless");
+  write_stl_machine(work / "cad");
+  const Exported e = run(work / "cad",
+                         "parts:\n"
+                         "  drum: {role: drum, material: steel, speed: 44.8}\n"
+                         "  electrode: {role: electrode, voltage: -30000}\n" +
+                             std::string(kSceneKeys),
+                         work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find("annotations.yaml:2:46: parts.drum.speed: got 44.8, a number without a "
+                       "unit, expected an angular speed with its unit such as '44.8 rpm' ('44.8 "
+                       "rad/s' if rad/s are meant)"),
+            std::string::npos)
+      << e.err;
+  EXPECT_NE(e.err.find("annotations.yaml:3:41: parts.electrode.voltage: got -30000, a number "
+                       "without a unit, expected a voltage with its unit such as '-35 kV' "
+                       "('-30000 V' if V are meant)"),
+            std::string::npos)
+      << e.err;
+  expect_nothing_written(e);
+  const Exported wrong = run(work / "cad",
+                             "parts:\n"
+                             "  drum: {role: drum, material: steel, speed: 44.8 rpm}\n"
+                             "  electrode: {role: electrode, voltage: -30 mm}\n" +
+                                 std::string(kSceneKeys),
+                             work);
+  EXPECT_EQ(wrong.code, 2);
+  EXPECT_NE(wrong.err.find("parts.electrode.voltage: got '-30 mm', expected a voltage such as "
+                           "'-35 kV'"),
+            std::string::npos)
+      << wrong.err;
 }
 
 // Scene keys in the annotations are checked by the simulator's own loader;
