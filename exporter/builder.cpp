@@ -30,6 +30,7 @@ double tidy(double v) {
   std::snprintf(s, sizeof s, "%.12g", v);
   return std::strtod(s, nullptr);
 }
+double micrometres(double v) { return tidy(std::round(v * 1e6) / 1e6); }
 json vec(const Vec3& v) { return json::array({tidy(v.x()), tidy(v.y()), tidy(v.z())}); }
 std::string degrees(double radians) { return json(tidy(radians * 180.0 / kPi)).dump() + " deg"; }
 
@@ -100,6 +101,7 @@ class Builder {
     add_includes();
     for (const Placed& p : m_.parts) add(p);
     add_electrostatics();
+    add_gravity();
     add_domain();
     merge(root_, user_keys());
     order_keys();
@@ -437,7 +439,9 @@ class Builder {
     section("feeds", Node::Kind::Sequence).items.push_back(std::move(feed));
   }
 
-  // Bins default to the plate's longer side.
+  // Bins default to the plate's longer side, their ends on a micrometre
+  // grid: from STL the plate's ends carry float noise (1e-8 m), and products
+  // given up to the ends would leave bins that end a hair short of them.
   void add_collector(const Placed& p) {
     const auto [k, sign] = facing(p, 1.0);
     const Bounds& b = p.quality.bounds;
@@ -451,24 +455,25 @@ class Builder {
                          {"plane", {{"point", vec(b.center())}, {"normal", vec(normal)}}},
                          {"bins",
                           {{"axis", vec(along)},
-                           {"from", tidy(b.min[j])},
-                           {"to", tidy(b.max[j])},
+                           {"from", micrometres(b.min[j])},
+                           {"to", micrometres(b.max[j])},
                            {"count", kDefaultBins}}}};
     Node c = scene::from_json(collector, p.rule->mark);
     if (const Node* more = p.rule->spec->find("collector")) merge(c, *more);
     section("collectors", Node::Kind::Sequence).items.push_back(std::move(c));
   }
 
-  // Everything the parts span, with a tenth of the machine's size around it,
-  // unless the annotations or their includes give a domain.
+  // Without gravity a feed hangs where it appears. It acts along -y of the
+  // scene, which `frame: up` makes the CAD's down.
+  void add_gravity() {
+    if (user_has("gravity")) return;
+    put(root_, "gravity", json::array({0, kGravity, 0}), root_mark_);
+  }
+
   void add_domain() {
     if (user_has("domain")) return;
-    Bounds all;
-    for (const Placed& p : m_.parts) all.add(p.quality.bounds);
-    const Vec3 margin = Vec3::Constant(0.1 * all.size().maxCoeff());
-    put(root_, "domain",
-        json{{"box", {{"min", vec(all.min - margin)}, {"max", vec(all.max + margin)}}}},
-        root_mark_);
+    const Bounds d = default_domain(m_);
+    put(root_, "domain", json{{"box", {{"min", vec(d.min)}, {"max", vec(d.max)}}}}, root_mark_);
   }
 
   const Machine& m_;
@@ -481,6 +486,15 @@ class Builder {
 };
 
 }  // namespace
+
+Bounds default_domain(const Machine& machine) {
+  Bounds all;
+  for (const Placed& p : machine.parts) all.add(p.quality.bounds);
+  const Vec3 margin = Vec3::Constant(0.1 * all.size().maxCoeff());
+  all.min -= margin;
+  all.max += margin;
+  return all;
+}
 
 scene::Node build_scene(const Machine& machine, const Annotations& annotations,
                         const SceneSetup& setup, std::vector<std::string>& warnings) {

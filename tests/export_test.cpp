@@ -377,6 +377,72 @@ TEST(ExportBadInput, ReferenceStepWithoutFrame) {
   expect_nothing_written(e);
 }
 
+// A part's tessellation as a CAD program writes it to STL: float
+// coordinates in mm.
+void write_stl_mm(const fs::path& path, const Mesh& m) {
+  std::vector<Triangle> t;
+  for (const auto& tri : m.triangles)
+    t.push_back({1e3 * m.vertices[tri[0]], 1e3 * m.vertices[tri[1]], 1e3 * m.vertices[tri[2]]});
+  write_stl(path, t);
+}
+
+// The reference machine exported as STL (each part's tessellation, in mm,
+// where the assembly places it) gives the primitives its STEP gives: the
+// same kinds, cylinders fitted to 0.1 % of their radius, boxes (the second
+// splitter tilted by 27 degrees) to float precision.
+TEST(ExportRoundTrip, ReferenceMachineFromStlGivesTheStepPrimitives) {
+  const fs::path root = CES_SOURCE_DIR;
+  const fs::path work = fresh_dir("export_reference_stl");
+  std::string unit;
+  const std::vector<Part> parts =
+      read_step((root / "meshes/ces/ces_machine.step").string(), StepOptions{}, unit);
+  fs::create_directories(work / "stl");
+  for (const Part& p : parts) write_stl_mm(work / "stl" / (p.name + ".stl"), p.mesh);
+  const std::string annotations = read_text(root / "meshes/ces/annotations.yaml");
+  fs::create_directories(work / "a");
+  fs::create_directories(work / "b");
+  const Exported step = run(root / "meshes/ces/ces_machine.step", annotations, work / "a");
+  const Exported stl = run(work / "stl", annotations, work / "b");
+  ASSERT_EQ(step.code, 0) << step.err;
+  ASSERT_EQ(stl.code, 0) << stl.err;
+  EXPECT_EQ(stl.err, "");  // every part fitted, none left out
+  ASSERT_EQ(stl.scene["bodies"].size(), step.scene["bodies"].size());
+  for (const YAML::Node& a : step.scene["bodies"]) {
+    const YAML::Node b = body(stl, a["name"].as<std::string>());  // STL parts come sorted by name
+    SCOPED_TRACE(a["name"].as<std::string>());
+    EXPECT_LT((vec(b["pose"]["position"]) - vec(a["pose"]["position"])).norm(), 1e-5);
+    if (a["geometry"]["cylinder"]) {
+      ASSERT_TRUE(b["geometry"]["cylinder"]) << b;
+      const double r = a["geometry"]["cylinder"]["radius"].as<double>();
+      EXPECT_NEAR(b["geometry"]["cylinder"]["radius"].as<double>(), r, 1e-3 * r);
+      EXPECT_NEAR(b["geometry"]["cylinder"]["length"].as<double>(),
+                  a["geometry"]["cylinder"]["length"].as<double>(), 1e-6);
+      EXPECT_LT((vec(b["pose"]["axis"]) - vec(a["pose"]["axis"])).norm(), 1e-6);
+    } else {
+      ASSERT_TRUE(a["geometry"]["box"]) << a;
+      ASSERT_TRUE(b["geometry"]["box"]) << b;
+      EXPECT_LT((vec(b["geometry"]["box"]["size"]) - vec(a["geometry"]["box"]["size"])).norm(),
+                1e-6);
+      EXPECT_LT((pose_rotation(b) - pose_rotation(a)).norm(), 1e-6);
+    }
+  }
+  const YAML::Node ea = step.scene["electrostatics"]["electrodes"][0];
+  const YAML::Node eb = stl.scene["electrostatics"]["electrodes"][0];
+  EXPECT_NEAR(eb["polar"]["distance"].as<double>(), ea["polar"]["distance"].as<double>(), 1e-5);
+  EXPECT_NEAR(std::stod(eb["polar"]["angle"].as<std::string>()),
+              std::stod(ea["polar"]["angle"].as<std::string>()), 1e-3);
+  EXPECT_NEAR(eb["radius"].as<double>(), ea["radius"].as<double>(),
+              1e-3 * ea["radius"].as<double>());
+  const auto outlet = [](const Exported& e) { return e.scene["feeds"][0]["region"]["outlet"]; };
+  EXPECT_LT((vec(outlet(stl)["center"]) - vec(outlet(step)["center"])).norm(), 1e-6);
+  const auto plane = [](const Exported& e) { return e.scene["collectors"][0]["plane"]; };
+  EXPECT_LT((vec(plane(stl)["point"]) - vec(plane(step)["point"])).norm(), 1e-6);
+  // The fits' own measures, for the record.
+  for (const char* name : {"drum", "brush", "electrode"})
+    EXPECT_LT(report_part(stl, name)["cylinder_fit"]["rms_relative"].get<double>(), 0.005) << name;
+  for (const char* name : {"splitter_1", "splitter_2"})
+    EXPECT_LT(report_part(stl, name)["box_fit"]["volume_error"].get<double>(), 3e-5) << name;
+}
 #else
 TEST(ExportStep, WithoutOpenCascadeStepIsAClearError) {
   const fs::path work = fresh_dir("export_no_occt");
@@ -546,6 +612,86 @@ TEST(ExportStl, TiltedSplittersAreBoxes) {
   expect_validates(e);
 }
 
+const char* kNoGravityKeys = R"(
+time: {step: 1 ms, end: 0.1 s}
+materials:
+  steel: {friction: 0.3}
+)";
+
+// Without gravity a feed hangs at its outlet: the exporter writes it along
+// -y of the scene, which the frame's up makes the CAD's down. Given in the
+// annotations, it is theirs alone (lists would otherwise join).
+TEST(ExportStl, GravityIsWrittenUnlessGiven) {
+  const fs::path work = fresh_dir("export_stl_gravity");
+  write_stl_machine(work / "cad");
+  const std::string parts =
+      "parts:\n"
+      "  drum: {role: drum, material: steel, speed: 44.8 rpm, rotation_axis: [0, 0, -1]}\n"
+      "  hopper: {role: hopper, material: steel}\n"
+      "  splitter: {role: splitter, material: steel}\n";
+  const Exported made = run(work / "cad", parts + kNoGravityKeys, work);
+  ASSERT_EQ(made.code, 0) << made.err;
+  ASSERT_EQ(made.scene["gravity"].size(), 3u);
+  EXPECT_EQ(made.scene["gravity"][0].as<double>(), 0.0);
+  EXPECT_EQ(made.scene["gravity"][1].as<std::string>(), "-9.81 m/s^2");
+  EXPECT_EQ(made.scene["gravity"][2].as<double>(), 0.0);
+  EXPECT_NE(made.out.find("gravity:    [0, -9.81, 0] m/s^2 (ces-export's: down is the CAD's "
+                          "[0, -1, 0])"),
+            std::string::npos)
+      << made.out;
+  // The CAD drawn z up: `frame: up` says so, and down is the CAD's -z.
+  const Exported up =
+      run(work / "cad", "frame: {up: [0, 0, 1], axis: [1, 0, 0]}\n" + parts + kNoGravityKeys, work);
+  ASSERT_EQ(up.code, 0) << up.err;
+  EXPECT_EQ(up.scene["gravity"][1].as<std::string>(), "-9.81 m/s^2");
+  EXPECT_NE(up.out.find("down is the CAD's [0, 0, -1]"), std::string::npos) << up.out;
+  const Exported given =
+      run(work / "cad", parts + kNoGravityKeys + "gravity: [0, 0, -9.81 m/s^2]\n", work);
+  ASSERT_EQ(given.code, 0) << given.err;
+  ASSERT_EQ(given.scene["gravity"].size(), 3u);
+  EXPECT_EQ(given.scene["gravity"][2].as<std::string>(), "-9.81 m/s^2");
+  EXPECT_NE(given.out.find("gravity:    [0, 0, -9.81] m/s^2 (from the annotations)"),
+            std::string::npos)
+      << given.out;
+}
+
+std::size_t line_count(const std::string& text) {
+  return std::size_t(std::count(text.begin(), text.end(), '\n'));
+}
+
+// What ces-export made, on one screen: parts by kind with their fits, the
+// domain, gravity, feeds and collectors, and the command to run it.
+TEST(ExportStl, SummaryOnOneScreen) {
+  const fs::path work = fresh_dir("export_stl_summary");
+  write_stl_machine(work / "cad");
+  write_stl(work / "cad" / "outlet.stl", box({-60, 180, -40}, {0, 182, 40}));
+  write_stl(work / "cad" / "floor.stl", box({-200, -250, -150}, {300, -248, 150}));
+  write_stl(work / "cad" / "bolt.stl", box({0, 0, 0}, {5, 5, 5}));
+  const Exported e =
+      run(work / "cad",
+          machine_annotations("[0, 0, -1]",
+                              "  outlet: {role: feed_outlet, feed: {rate: 5 g/s, duration: 0.1 s,\n"
+                              "           mix: [{material: grit, size: {constant: 1 mm}}]}}\n"
+                              "  floor: {role: collector_plane}\n"
+                              "  bolt: {role: ignore}\n") +
+              "  grit: {density: 2500 kg/m^3, friction: 0.5}\n",
+          work);
+  ASSERT_EQ(e.code, 0) << e.err;
+  EXPECT_LE(line_count(e.out), 24u) << e.out;
+  for (const char* line :
+       {"made: 1 cylinder, 1 box, 1 mesh, 1 feed outlet, 1 collector plane; 1 left out\n",
+        "fitted, RMS", "off its box by", "meshes/hopper.stl: 12 triangles, 0 open",
+        "left out (role: ignore): bolt\n",
+        "gravity:    [0, -9.81, 0] m/s^2 (from the annotations)\n",
+        "domain:     [-0.25, -0.3, -0.2] to [0.35, 0.25, 0.2] m (ces-export's",
+        "feed:       outlet: 5 g/s from 0 s for 0.1 s out of [-0.06, 0.181, -0.04] to [0, 0.181, "
+        "0.04]\n",
+        "collector:  floor: 50 bins along [1, 0, 0] from -0.2 m to 0.3 m on the plane through "
+        "[0.05, -0.249, 0] facing [0, 1, 0]\n",
+        "next:       ces-sim "})
+    EXPECT_NE(e.out.find(line), std::string::npos) << line << "\n" << e.out;
+}
+
 // --- bad input -------------------------------------------------------------
 
 TEST(ExportBadInput, UnreadableMeshesAndMissingInput) {
@@ -653,6 +799,38 @@ TEST(ExportBadInput, MachineDrawnInAnotherFrame) {
   ASSERT_EQ(fixed.code, 0) << fixed.err;
   EXPECT_NEAR(fixed.scene["electrostatics"]["electrodes"][0]["polar"]["distance"].as<double>(),
               0.267, 1e-6);
+}
+
+// A feed or a collector the exporter's own domain does not hold: the
+// message says what that domain is and how to give another.
+TEST(ExportBadInput, FeedOutsideTheDomainTheExporterMade) {
+  const fs::path work = fresh_dir("export_bad_domain");
+  write_stl_machine(work / "cad");
+  const Exported e =
+      run(work / "cad",
+          machine_annotations("[0, 0, -1]") + "  grit: {density: 2500 kg/m^3, friction: 0.5}\n" +
+              "feeds:\n"
+              "  - {name: extra, rate: 1 g/s, mix: [{material: grit, size: {constant: 1 mm}}],\n"
+              "     region: {box: {min: [0.5, 0.5, 0], max: [0.6, 0.6, 0.1]}}}\n"
+              "collectors:\n"
+              "  - {name: low, plane: {point: [0, -2, 0], normal: [0, 1, 0]},\n"
+              "     bins: {axis: [1, 0, 0], from: -0.1, to: 0.1, count: 10}}\n",
+          work);
+  EXPECT_EQ(e.code, 2);
+  const std::string domain =
+      "(the domain is ces-export's: the parts' bounding box and a tenth of the machine around "
+      "it, from [-0.196, -0.196, -0.186] to [0.196, 0.236, 0.186] m; expected the part inside "
+      "it, or domain: {box: {min: [x, y, z], max: [x, y, z]}} in the annotations)";
+  EXPECT_NE(e.err.find("annotations.yaml:13:"), std::string::npos) << e.err;  // the region
+  EXPECT_NE(e.err.find("the region reaches outside the domain"), std::string::npos) << e.err;
+  EXPECT_NE(e.err.find("the plane misses the domain"), std::string::npos) << e.err;
+  EXPECT_EQ(std::count(e.err.begin(), e.err.end(), '\n'), 3) << e.err;  // 2 + "nothing written"
+  std::size_t notes = 0;
+  for (std::size_t at = e.err.find(domain); at != std::string::npos;
+       at = e.err.find(domain, at + 1))
+    ++notes;
+  EXPECT_EQ(notes, 2u) << e.err;
+  expect_nothing_written(e);
 }
 
 // A voltage or a drum speed without a unit would be read in SI (volts,
