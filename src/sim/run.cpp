@@ -22,6 +22,7 @@
 #include "output/summary.hpp"
 #include "output/tables.hpp"
 #include "output/trajectories.hpp"
+#include "sim/threads.hpp"
 #include "sim/world.hpp"
 
 namespace ces {
@@ -172,6 +173,7 @@ class Runner {
   fs::path dir_;
   World world_;
   Observers observers_;
+  ThreadGovernor threads_;
   double output_seconds_ = 0.0;  // the output stage's, and the writing before and after the steps
   bool complete_ = false;
   std::string reason_ = "running";
@@ -182,7 +184,9 @@ Runner::Runner(const Simulation& sim, const RunOptions& options)
       options_(options),
       dir_(prepare_output_dir(sim, options)),
       world_(sim),
-      observers_(sim, dir_, world_) {}
+      observers_(sim, dir_, world_),
+      threads_(sim.model->threads > 0 ? sim.model->threads : omp_get_max_threads(),
+               sim.model->threads == 0) {}
 
 // A property of the machine, not of the run: written first, so an
 // interrupted run still has it.
@@ -217,7 +221,10 @@ void Runner::step_to_end() {
         reason_ = g_stop_signal == SIGINT ? "interrupted by SIGINT" : "interrupted by SIGTERM";
         return;
       }
+      omp_set_num_threads(threads_.next());
+      const auto t0 = Clock::now();
       output_seconds_ += world_.step(&observers_).seconds[Stage::Output];
+      threads_.took(seconds_since(t0));
       progress.update(world_, sim_.end_time, seconds_since(start_));
     }
     complete_ = true;
@@ -257,7 +264,9 @@ output::RunRecord Runner::record() const {
   r.reason = complete_ ? std::string() : reason_;
   r.steps = world_.step_count();
   r.time = world_.time();
-  r.threads = sim_.model->threads > 0 ? sim_.model->threads : omp_get_max_threads();
+  r.threads = threads_.max_threads();
+  r.threads_adaptive = threads_.adaptive();
+  r.steps_at_threads = threads_.steps_at();
   r.wall = seconds_since(start_);
   r.solver = observers_.solver();
   // The steps' own, complete only once each step returned, and the writing
