@@ -311,7 +311,8 @@ std::string summary_json(const RunRecord& r) {
             {"spawn", spawn_json(r)},
             {"trajectory_frames", r.frames},
             {"active_components", sim.active_components},
-            {"warnings", r.warnings}};
+            {"warnings", r.warnings},
+            {"files", r.files}};
   return j.dump(2) + "\n";
 }
 

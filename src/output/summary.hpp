@@ -44,6 +44,7 @@ struct RunRecord {
   std::vector<ProductResult> products;
   std::size_t frames = 0;
   std::vector<std::string> warnings;
+  std::vector<std::string> files;  // the run's outputs, relative to its folder
 };
 
 // What a user should look at twice: solver caps, deep overlaps, deferred or
