@@ -283,6 +283,8 @@ class CcpProblem {
   void scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
   void scatter_bodies(const double* P, ConstSpan x, bool add_free, std::vector<Vec3>& dv,
                       std::vector<Vec3>& dw) const;
+  // dv, dw += M^-1 J^T x over x's bilateral rows.
+  void add_row_impulses(ConstSpan x, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
   void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, Span y) const;
   void gather_rows(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias,
                    Span y) const;
