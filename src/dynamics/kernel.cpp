@@ -1,7 +1,8 @@
 // The APGD kernel (CcpProblem::apgd_step, apgd_gradient and the bodies'
 // pass, scatter_bodies): four contacts to a vector (GCC/Clang vector
 // extensions; AVX when the build enables it, two SSE2 halves otherwise).
-// Lane l holds contact 4 b + l of block b.
+// The only file built beyond baseline x86-64 (CMakeLists.txt). Lane l
+// holds contact 4 b + l of block b.
 //
 // It runs on world rows: a contact's three rows hold its impulse as a world
 // vector P = n x_n + t1 x_t1 + t2 x_t2, and its gradient is the relative
