@@ -19,6 +19,8 @@ Vec3 point_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, int 
   return v[u] + w[u].cross(r);
 }
 
+}  // namespace
+
 double row_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, const BilateralRow& row) {
   double s = 0.0;
   if (row.a >= 0) s += row.lin_a.dot(v[std::size_t(row.a)]) + row.ang_a.dot(w[std::size_t(row.a)]);
@@ -39,8 +41,6 @@ void apply_row(const SolverBodies& B, const BilateralRow& row, double impulse,
     w[b] += B.inv_inertia[b] * (impulse * row.ang_b);
   }
 }
-
-}  // namespace
 
 void SolverBodies::resize(std::size_t n) {
   x.resize(n);
@@ -141,7 +141,7 @@ void CcpProblem::gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, 
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t s = 0; s < nc; ++s) {
     const auto k = std::size_t(s);
-    const Vec3 rel = point_velocity(v, w, b_[k], lever_b(k)) - point_velocity(v, w, a_[k], lever_a(k));
+    const Vec3 rel = relative_velocity(k, v, w);
     const Frame F = frame(k);
     y[3 * k] = F.n.dot(rel) + (add_bias ? bias_[k] : 0.0);
     y[3 * k + 1] = F.t1.dot(rel);
@@ -306,8 +306,7 @@ void CcpProblem::world_gradient(ConstSpan P, Span g) const {
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t s = 0; s < nc; ++s) {
     const auto k = std::size_t(s);
-    const Vec3 rel = point_velocity(dv_, dw_, b_[k], lever_b(k)) -
-                     point_velocity(dv_, dw_, a_[k], lever_a(k)) + bias_[k] * normal(k);
+    const Vec3 rel = relative_velocity(k, dv_, dw_) + bias_[k] * normal(k);
     std::copy_n(rel.data(), 3, &g[3 * k]);
   }
   gather_rows(dv_, dw_, true, g);
@@ -316,10 +315,6 @@ void CcpProblem::world_gradient(ConstSpan P, Span g) const {
 Vec3 CcpProblem::world_impulse(std::size_t k, ConstSpan x) const {
   const Frame F = frame(k);
   return F.n * x[3 * k] + F.t1 * x[3 * k + 1] + F.t2 * x[3 * k + 2];
-}
-
-CcpProblem::Frame CcpProblem::frame(std::size_t k) const {
-  return {normal(k), tangent_[2 * k], tangent_[2 * k + 1]};
 }
 
 void CcpProblem::make_tangents(std::size_t k) {
@@ -374,62 +369,6 @@ double CcpProblem::block_bound(std::size_t k) const {
   add(a_[k], lever_a(k));
   add(b_[k], lever_b(k));
   return block.cwiseAbs().rowwise().sum().maxCoeff();
-}
-
-SolveStats CcpProblem::solve_pgs(Span x, const SolverSettings& s, SolverWorkspace& ws) const {
-  const SolverBodies& B = *bodies_;
-  std::vector<Vec3>& v = ws.v;
-  std::vector<Vec3>& w = ws.w;
-  velocities(x, v, w);
-  const std::size_t nc = a_.size();
-  // One step per contact block: with the normal row's 1/diag alone, a
-  // cluster's tangential rows (large lever arms) were over-stepped and diverged.
-  const Span steps = ws.take(0, nc), g = ws.take(1, x.size());
-  for (std::size_t k = 0; k < nc; ++k) {
-    const double bound = block_bound(k);
-    steps[k] = bound > 0.0 ? s.pgs_relaxation / bound : 0.0;
-  }
-  SolveStats stats;
-  for (int it = 0; it < s.max_iterations; ++it) {
-    for (std::size_t k = 0; k < nc; ++k) {
-      const double step = steps[k];
-      if (step <= 0.0) continue;
-      const Vec3 ra = lever_a(k), rb = lever_b(k);
-      const auto [n, t1, t2] = frame(k);
-      const Vec3 rel = point_velocity(v, w, b_[k], rb) - point_velocity(v, w, a_[k], ra);
-      const std::size_t i = 3 * k;
-      double gn = x[i] - step * (n.dot(rel) + bias_[k]);
-      double g1 = x[i + 1] - step * t1.dot(rel);
-      double g2 = x[i + 2] - step * t2.dot(rel);
-      project_cone(friction(k), gn, g1, g2);
-      const Vec3 dP = n * (gn - x[i]) + t1 * (g1 - x[i + 1]) + t2 * (g2 - x[i + 2]);
-      x[i] = gn;
-      x[i + 1] = g1;
-      x[i + 2] = g2;
-      const auto a = std::size_t(a_[k]), b = std::size_t(b_[k]);
-      v[a] -= B.inv_mass[a] * dP;
-      w[a] -= B.inv_inertia[a] * ra.cross(dP);
-      v[b] += B.inv_mass[b] * dP;
-      w[b] += B.inv_inertia[b] * rb.cross(dP);
-    }
-    for (std::size_t j = 0; j < rows_.size(); ++j) {
-      if (row_diag_[j] <= 0.0) continue;
-      const BilateralRow& row = rows_[j];
-      double& xi = x[3 * nc + j];
-      const double next = std::clamp(
-          xi - s.pgs_relaxation / row_diag_[j] * (row_velocity(v, w, row) + row.bias), row.lo, row.hi);
-      apply_row(B, row, next - xi, v, w);
-      xi = next;
-    }
-    stats.iterations = it + 1;
-    gradient(x, g);
-    stats.residual = residual(x, g);
-    if (stats.residual <= s.tolerance) {
-      stats.converged = true;
-      break;
-    }
-  }
-  return stats;
 }
 
 // The wall guard. A solve stopped at its iteration cap can leave a wall's
@@ -576,11 +515,6 @@ CcpProblem::WallGuard CcpProblem::guard_walls(Span x, std::vector<Vec3>& v, std:
                                   [&](std::size_t begin, std::size_t end, WallGuard& out) {
                                     for (std::size_t b = begin; b < end; ++b) guard(b, out);
                                   });
-}
-
-double CcpProblem::row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const {
-  return normal(k).dot(point_velocity(v, w, b_[k], lever_b(k)) - point_velocity(v, w, a_[k], lever_a(k))) +
-         bias_[k];
 }
 
 }  // namespace ces

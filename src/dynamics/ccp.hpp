@@ -98,6 +98,11 @@ struct BilateralRow {
   double lo = -std::numeric_limits<double>::infinity();
   double hi = std::numeric_limits<double>::infinity();
 };
+// The row's J v at velocities v, w (without its bias).
+double row_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, const BilateralRow& row);
+// v, w += M^-1 J^T impulse: what the row's impulse does to its bodies.
+void apply_row(const SolverBodies& B, const BilateralRow& row, double impulse,
+               std::vector<Vec3>& v, std::vector<Vec3>& w);
 
 // The solvers' vectors. They live across steps and only grow (std::vector
 // keeps its capacity), so a run stops allocating once its contact count
@@ -266,8 +271,45 @@ class CcpProblem {
   TrialSums apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_old, Momentum momentum,
                           TrialSums& t, const NextTrial& next) const;
 
-  // Projected Gauss-Seidel sweeps, in place (needs row access).
-  SolveStats solve_pgs(Span x, const SolverSettings& s, SolverWorkspace& ws) const;
+  // Contact k as the solvers and safeguards outside the kernel read it:
+  // its solver bodies, frame, friction coefficient, lever arms (from each
+  // body's centre of mass to the contact point) and bias b.
+  const SolverBodies& bodies() const { return *bodies_; }
+  int body_a(std::size_t k) const { return a_[k]; }
+  int body_b(std::size_t k) const { return b_[k]; }
+  Vec3 normal(std::size_t k) const {
+    const StoredScalar* f = frame_at(k);
+    return {double(f[0]), double(f[kLanes]), double(f[2 * kLanes])};
+  }
+  double friction(std::size_t k) const { return double(frame_at(k)[3 * kLanes]); }
+  // The contact's frame: the stored normal and tangents made from it.
+  struct Frame {
+    Vec3 n, t1, t2;
+  };
+  Frame frame(std::size_t k) const { return {normal(k), tangent_[2 * k], tangent_[2 * k + 1]}; }
+  Vec3 lever_a(std::size_t k) const { return lever(k, 0); }
+  Vec3 lever_b(std::size_t k) const { return lever(k, 1); }
+  double bias(std::size_t k) const { return bias_[k]; }
+  // Contact k's rows of x (its frame's) as a world vector.
+  Vec3 world_impulse(std::size_t k, ConstSpan x) const;
+  // The velocity of b's point of the contact relative to a's, at v, w.
+  Vec3 relative_velocity(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const {
+    const auto a = std::size_t(a_[k]), b = std::size_t(b_[k]);
+    return (v[b] + w[b].cross(lever_b(k))) - (v[a] + w[a].cross(lever_a(k)));
+  }
+  // Contact k's normal row v_n + b at velocities v, w.
+  double row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const {
+    return normal(k).dot(relative_velocity(k, v, w)) + bias_[k];
+  }
+  // A Gershgorin bound on the largest eigenvalue of contact k's 3x3 block
+  // of N, in its frame.
+  double block_bound(std::size_t k) const;
+  // Each body of finite mass's contacts, in contact order.
+  const ContactAdjacency& adjacency() const { return adj_; }
+  // The bilateral rows (x's rows from 3 contact_count() on), and N's
+  // diagonal on them.
+  const std::vector<BilateralRow>& rows() const { return rows_; }
+  double row_diagonal(std::size_t j) const { return row_diag_[j]; }
 
   // Sums acc(k, mu_k, part) over contacts k (rows 3k..3k+2) and
   // row(i, lo, hi, part) over bilateral rows i, in fixed chunks of contacts
@@ -288,12 +330,9 @@ class CcpProblem {
   void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, Span y) const;
   void gather_rows(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias,
                    Span y) const;
-  double block_bound(std::size_t k) const;
   // A bound on the largest eigenvalue of one body's part of a contact's
   // block of N, at lever arm r (world rows).
   double block_scale(int body, const Vec3& r) const;
-  // Contact k's normal row v_n + b at velocities v, w.
-  double row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const;
 
   const SolverBodies* bodies_ = nullptr;
   // Contacts, structure of arrays.
@@ -314,30 +353,16 @@ class CcpProblem {
   const StoredScalar* frame_at(std::size_t k) const {
     return &frame_[k / kLanes * kFrameBlock + k % kLanes];
   }
-  Vec3 normal(std::size_t k) const {
-    const StoredScalar* f = frame_at(k);
-    return {double(f[0]), double(f[kLanes]), double(f[2 * kLanes])};
-  }
-  double friction(std::size_t k) const { return double(frame_at(k)[3 * kLanes]); }
-  // The contact's frame: the stored normal and tangents made from it.
-  struct Frame {
-    Vec3 n, t1, t2;
-  };
-  Frame frame(std::size_t k) const;
   // The tangents of contact k's frame, made from its stored normal once per
   // step: the scalar passes (warm start, the changes of rows, the scatter
   // and gather outside the kernel, the safeguards) took a frame about ten
   // times a step, a division each.
   void make_tangents(std::size_t k);
   std::vector<Vec3> tangent_;
-  // Contact k's rows of x (its frame's) as a world vector.
-  Vec3 world_impulse(std::size_t k, ConstSpan x) const;
   Vec3 lever(std::size_t k, std::size_t side) const {
     const StoredScalar* r = &lever_[6 * k + 3 * side];
     return {double(r[0]), double(r[1]), double(r[2])};
   }
-  Vec3 lever_a(std::size_t k) const { return lever(k, 0); }
-  Vec3 lever_b(std::size_t k) const { return lever(k, 1); }
   std::vector<double> bias_;
   // APGD's metric, per block of four contacts: their step weights w, then
   // the bounds 1 / w (apgd_step scales the step by w and |d|^2 by 1 / w:

@@ -218,11 +218,89 @@ SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, Span x, Solve
   return record.stats;
 }
 
+// Projected Gauss-Seidel (Anitescu, Tasora, Comput. Optim. Appl.
+// 47(2), 2010): contact by contact, then bilateral row by row, each
+// projected step applied at once to the running velocities v, w, which the
+// next rows read.
+namespace {
+
+// One sweep over the contacts, contact k's rows by its step steps[k].
+void pgs_contacts(const CcpProblem& p, ConstSpan steps, Span x, std::vector<Vec3>& v,
+                  std::vector<Vec3>& w) {
+  const SolverBodies& B = p.bodies();
+  for (std::size_t k = 0; k < p.contact_count(); ++k) {
+    const double step = steps[k];
+    if (step <= 0.0) continue;
+    const Vec3 ra = p.lever_a(k), rb = p.lever_b(k);
+    const auto [n, t1, t2] = p.frame(k);
+    const Vec3 rel = p.relative_velocity(k, v, w);
+    const std::size_t i = 3 * k;
+    double gn = x[i] - step * (n.dot(rel) + p.bias(k));
+    double g1 = x[i + 1] - step * t1.dot(rel);
+    double g2 = x[i + 2] - step * t2.dot(rel);
+    project_cone(p.friction(k), gn, g1, g2);
+    const Vec3 dP = n * (gn - x[i]) + t1 * (g1 - x[i + 1]) + t2 * (g2 - x[i + 2]);
+    x[i] = gn;
+    x[i + 1] = g1;
+    x[i + 2] = g2;
+    const auto a = std::size_t(p.body_a(k)), b = std::size_t(p.body_b(k));
+    v[a] -= B.inv_mass[a] * dP;
+    w[a] -= B.inv_inertia[a] * ra.cross(dP);
+    v[b] += B.inv_mass[b] * dP;
+    w[b] += B.inv_inertia[b] * rb.cross(dP);
+  }
+}
+
+// One sweep over the bilateral rows, row j's by relaxation / N_jj.
+void pgs_rows(const CcpProblem& p, double relaxation, Span x, std::vector<Vec3>& v,
+              std::vector<Vec3>& w) {
+  const std::size_t base = 3 * p.contact_count();
+  for (std::size_t j = 0; j < p.rows().size(); ++j) {
+    const double diagonal = p.row_diagonal(j);
+    if (diagonal <= 0.0) continue;
+    const BilateralRow& row = p.rows()[j];
+    double& xi = x[base + j];
+    const double next = std::clamp(
+        xi - relaxation / diagonal * (row_velocity(v, w, row) + row.bias), row.lo, row.hi);
+    apply_row(p.bodies(), row, next - xi, v, w);
+    xi = next;
+  }
+}
+
+}  // namespace
+
+SolveStats solve_pgs(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws) {
+  std::vector<Vec3>& v = ws.v;
+  std::vector<Vec3>& w = ws.w;
+  p.velocities(x, v, w);
+  const std::size_t nc = p.contact_count();
+  // One step per contact block: with the normal row's 1/diag alone, a
+  // cluster's tangential rows (large lever arms) are over-stepped and diverge.
+  const Span steps = ws.take(0, nc), g = ws.take(1, x.size());
+  for (std::size_t k = 0; k < nc; ++k) {
+    const double bound = p.block_bound(k);
+    steps[k] = bound > 0.0 ? s.pgs_relaxation / bound : 0.0;
+  }
+  SolveStats stats;
+  for (int it = 0; it < s.max_iterations; ++it) {
+    pgs_contacts(p, steps, x, v, w);
+    pgs_rows(p, s.pgs_relaxation, x, v, w);
+    stats.iterations = it + 1;
+    p.gradient(x, g);
+    stats.residual = p.residual(x, g);
+    if (stats.residual <= s.tolerance) {
+      stats.converged = true;
+      break;
+    }
+  }
+  return stats;
+}
+
 SolveStats solve(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws) {
   switch (s.method) {
     case SolverMethod::APGD: return solve_apgd(p, s, x, ws);
     case SolverMethod::SPG: return solve_spg(p, s, x, ws);
-    case SolverMethod::PGS: return p.solve_pgs(x, s, ws);
+    case SolverMethod::PGS: return solve_pgs(p, s, x, ws);
   }
   return {};
 }

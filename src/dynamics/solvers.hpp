@@ -9,6 +9,7 @@ namespace ces {
 
 SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);
 SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);
+SolveStats solve_pgs(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);
 // The one the settings name.
 SolveStats solve(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws);
 
