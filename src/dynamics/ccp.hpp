@@ -160,61 +160,6 @@ class CcpProblem {
   void warm_start(const std::vector<ContactKey>& keys, const ContactMemory& previous,
                   ConstSpan prev_rows, Span x) const;
 
-  // The wall guard, after a solve (world.cpp): for each contact of a
-  // particle with a body of infinite mass (a wall, the drum, a mesh) whose
-  // row v_n + b >= 0 the solved impulses x leave violated by more than
-  // `tolerance` (m/s), adds the normal impulse that satisfies it, in
-  // Gauss-Seidel sweeps over those contacts, into x and into the
-  // velocities v, w (which must be those of x). See ccp.cpp.
-  // A body flagged in `locked` (per solver body) takes its corrections in
-  // translation only: its spin is left as it is (dynamics/safeguards.hpp).
-  //
-  // A wall has infinite mass, so the guard's rows of one particle are a
-  // problem of their own: the sweeps run body by body, in parallel, until
-  // none of the body's rows is violated, at most `max_sweeps` times.
-  // Gauss-Seidel on two rows whose normals are nearly opposite (a grain in
-  // the nip of two surfaces, a narrow wedge) gains only a fraction sin^2 of
-  // the angle between them per sweep: four sweeps left grains in the brush
-  // nip 5 radii inside the drum (docs/accuracy.md, section 4).
-  struct WallGuard {
-    std::size_t corrections = 0;  // rows corrected
-    std::size_t bodies = 0;       // bodies still violated after `first_sweeps`
-    std::size_t unconverged = 0;  // of them, left violated after max_sweeps
-    WallGuard& operator+=(const WallGuard& o) {
-      corrections += o.corrections;
-      bodies += o.bodies;
-      unconverged += o.unconverged;
-      return *this;
-    }
-  };
-  WallGuard guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w, double tolerance,
-                        int first_sweeps, int max_sweeps,
-                        const std::vector<std::uint8_t>* locked = nullptr) const;
-
-  // The same for every contact of a flagged body, whatever its partner
-  // (the impulse shared by both bodies): after the spin limit changed
-  // their spins. v, w need not be those of x.
-  std::size_t guard_bodies(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
-                           const std::vector<std::uint8_t>& flagged, double tolerance,
-                           int sweeps, const std::vector<std::uint8_t>* locked = nullptr) const;
-
-  // The sliding lift of the relaxed cone complementarity, taken back on
-  // walls. The CCP gives a sliding contact the normal velocity mu |v_t|
-  // (Anitescu-Tasora), so a grain landing on a surface it slips against is
-  // thrown off it (at 0.19 m/s for 0.75 m/s of slip and mu 0.5) where the
-  // Coulomb law keeps it on: restitution 0 means no rebound. For each body
-  // whose contacts are all with bodies of infinite mass (a grain on the
-  // drum, not one in a pile: there the lift is shared with the neighbours),
-  // whose pressing contacts all slide and one of whose rows exceeds its
-  // target by more than `tolerance`: its contact impulses are scaled down
-  // together (each stays on its cone, friction mu times its normal impulse)
-  // by the largest share that leaves every one of its rows at or above its
-  // target. A flat contact comes to rest on its target, as under Coulomb.
-  // Into x and into v, w (which must be those of x). Returns the bodies
-  // released.
-  std::size_t release_sliding_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
-                                    double tolerance) const;
-
   // APGD runs on world rows (ccp.cpp, "The APGD kernel"): a contact's
   // three rows are its impulse as a world vector, n x_n + t1 x_t1 + t2 x_t2,
   // and its gradient J v + b n; bilateral rows as they are. The frame is
