@@ -652,7 +652,7 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   p.assemble(c, B, {row}, 1e-3, ContactSettings{});
   const std::size_t m = p.row_count();
   ASSERT_EQ(m, 40u);
-  // World rows, each with a spare past its end (SolverWorkspace::take).
+  // World rows, each with a spare past its end (RowBuffer::take).
   auto rows = [&] { return std::vector<double>(m + 1); };
   std::vector<double> x = rows(), x_old = rows(), x1 = rows(), gx = rows(), g_old = rows(),
                       g1 = rows(), y = rows(), gy = rows();

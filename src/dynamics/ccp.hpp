@@ -104,20 +104,6 @@ double row_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, cons
 void apply_row(const SolverBodies& B, const BilateralRow& row, double impulse,
                std::vector<Vec3>& v, std::vector<Vec3>& w);
 
-// The solvers' vectors. They live across steps and only grow (std::vector
-// keeps its capacity), so a run stops allocating once its contact count
-// peaks. Each solver names the buffers it takes by what it keeps in them.
-struct SolverWorkspace {
-  std::array<AlignedVector<double>, 8> row;  // vectors over the CCP's rows
-  std::vector<Vec3> v, w;                  // projected Gauss-Seidel's running velocities
-  // m rows, and a spare past them: the APGD kernel loads a contact's three
-  // impulse rows as a four-number vector.
-  Span take(std::size_t i, std::size_t m) {
-    row[i].resize(m + 1);
-    return Span(row[i].data(), m);
-  }
-};
-
 class CcpProblem {
  public:
   // Builds the problem for this step. `rows` are the joints' and motors' rows.
@@ -167,7 +153,7 @@ class CcpProblem {
   // to_world and to_local change x between the two.
   void to_world(ConstSpan x, Span P) const;
   void to_local(ConstSpan P, Span x) const;
-  // g = N P + r in world rows. P has a spare past its rows (SolverWorkspace).
+  // g = N P + r in world rows. P has a spare past its rows (RowBuffer).
   void world_gradient(ConstSpan P, Span g) const;
   // APGD's metric (solve_apgd): row i's step weight, the same for a
   // contact's three rows: 1 / (an upper bound on the largest eigenvalue of
@@ -180,7 +166,7 @@ class CcpProblem {
   // the bodies), four contacts to a SIMD vector (solve_apgd), on world
   // rows: apgd_gradient makes the next trial as it goes, and apgd_step
   // makes a trial alone at the start and after a rejected one. x, x1 have
-  // a spare past their rows (SolverWorkspace).
+  // a spare past their rows (RowBuffer).
   // The extrapolated point y = ca x - cb x_old and its gradient gy = ca gx -
   // cb g_old are made where they are used and never stored (cb = 0: y = x,
   // gy = gx, and x_old, g_old are not read): storing them cost more memory

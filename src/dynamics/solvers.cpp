@@ -83,15 +83,16 @@ struct Best {
 SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, SolverWorkspace& ws) {
   const std::size_t m = p.row_count();
   if (m == 0) return {0, 0.0, true};
-  // Five buffers for iterates: x, the one before it (x_old), the best so
-  // far (kept where it lies instead of copied; it may be x or x_old), the
-  // trial x1 and the next trial, made ahead in x1's gradient pass on the
-  // guess that x1 is accepted. A trial goes where it overwrites none of the
-  // others (a backtracking step makes x1 again from x and x_old). Three for
-  // the gradients: gx, g_old and x1's.
-  std::array<Span, 5> xs = {ws.take(0, m), ws.take(1, m), ws.take(2, m), ws.take(3, m),
-                            ws.take(7, m)};
-  std::array<Span, 3> gs = {ws.take(4, m), ws.take(5, m), ws.take(6, m)};
+  // Five iterates: x, the one before it (x_old), the best so far (kept
+  // where it lies instead of copied; it may be x or x_old), the trial x1
+  // and the next trial, made ahead in x1's gradient pass on the guess that
+  // x1 is accepted. A trial goes where it overwrites none of the others (a
+  // backtracking step makes x1 again from x and x_old). Three gradients:
+  // gx, g_old and x1's.
+  std::array<Span, 5> xs;
+  std::array<Span, 3> gs;
+  for (std::size_t i = 0; i < xs.size(); ++i) xs[i] = ws.apgd.iterates[i].take(m);
+  for (std::size_t i = 0; i < gs.size(); ++i) gs[i] = ws.apgd.gradients[i].take(m);
   std::size_t ix = 0, iold = 1, ibest = 2, i1 = 3, gx = 0, gold = 1, g1 = 2;
   p.to_world(out, xs[ix]);
   p.world_gradient(xs[ix], gs[gx]);
@@ -167,8 +168,9 @@ SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, Span x, Solve
   constexpr int kMemory = 10;
   constexpr double kSufficient = 1e-4;
   const double alpha_min = 1e-10 / p.diagonal_max(), alpha_max = 1e10 / p.diagonal_max();
-  const Span r = ws.take(0, m), g = ws.take(1, m), d = ws.take(2, m), nd = ws.take(3, m),
-             best = ws.take(4, m);
+  SolverWorkspace::Spg& buffers = ws.spg;
+  const Span r = buffers.bias.take(m), g = buffers.gradient.take(m), d = buffers.direction.take(m),
+             nd = buffers.product.take(m), best = buffers.best.take(m);
   p.project(x);
   std::fill(d.begin(), d.end(), 0.0);
   p.gradient(d, r);
@@ -270,13 +272,13 @@ void pgs_rows(const CcpProblem& p, double relaxation, Span x, std::vector<Vec3>&
 }  // namespace
 
 SolveStats solve_pgs(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws) {
-  std::vector<Vec3>& v = ws.v;
-  std::vector<Vec3>& w = ws.w;
+  std::vector<Vec3>& v = ws.pgs.v;
+  std::vector<Vec3>& w = ws.pgs.w;
   p.velocities(x, v, w);
   const std::size_t nc = p.contact_count();
   // One step per contact block: with the normal row's 1/diag alone, a
   // cluster's tangential rows (large lever arms) are over-stepped and diverge.
-  const Span steps = ws.take(0, nc), g = ws.take(1, x.size());
+  const Span steps = ws.pgs.steps.take(nc), g = ws.pgs.gradient.take(x.size());
   for (std::size_t k = 0; k < nc; ++k) {
     const double bound = p.block_bound(k);
     steps[k] = bound > 0.0 ? s.pgs_relaxation / bound : 0.0;
