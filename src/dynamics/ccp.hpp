@@ -1,4 +1,5 @@
-// The cone complementarity problem of one time step (DESIGN.md §4):
+// The cone complementarity problem of one time step (Anitescu, Tasora,
+// Comput. Optim. Appl. 47(2), 2010):
 //   find gamma in K with  N gamma + r in K°,  gamma ⟂ N gamma + r,
 // N = D^T M^-1 D, r = D^T v_free + b. It is the optimality condition of
 //   min f(gamma) = 1/2 gamma^T N gamma + r^T gamma  over K,
@@ -11,11 +12,13 @@
 // is bitwise the same for any number of threads. Reductions over rows go
 // through fixed chunks added in chunk order, for the same reason.
 //
-// APGD, the default, runs on a kernel of its own (apgd_step, apgd_gradient):
-// one pass over the contacts per iteration instead of five (two after a
-// rejected trial), four contacts to a SIMD vector, on world rows (a
-// contact's impulse as a world vector; ccp.cpp), so it needs only the
-// normal of a contact's frame.
+// APGD, the default, runs on a kernel of its own (apgd_step, apgd_gradient;
+// kernel.cpp): one pass over the contacts per iteration instead of five
+// (two after a rejected trial), four contacts to a SIMD vector, on world
+// rows (a contact's impulse as a world vector), so it needs only the normal
+// of a contact's frame. This file and ccp.cpp hold the problem and its
+// operator; solvers.hpp the solvers and safeguards.hpp what the step does
+// after a solve, both over the read-only view of the contacts below.
 //
 // The normals, friction coefficients and lever arms, and the bodies'
 // inverse masses and inertias, are stored in float: the kernel streams them
@@ -75,9 +78,8 @@ using Span = std::span<double>;
 using ConstSpan = std::span<const double>;
 
 // Contacts per chunk of a reduction; fixed, so sums do not depend on threads.
-// Small, so that two threads share even a few thousand contacts evenly: at
-// 2048 a flow's 5,000 contacts split 4,096 to 904, and up to 2,048 ran on
-// one thread (ces_pcb's first 0.5 s: solve 8.0 s against 9.0 s at 256).
+// Small, so that two threads share even a few thousand contacts evenly (in
+// chunks of 2,048, 5,000 contacts split 4,096 to 904).
 inline constexpr std::ptrdiff_t kReduceChunk = 256;
 
 // Bodies as the solver sees them: particles, then machine bodies.
@@ -146,7 +148,7 @@ class CcpProblem {
   void warm_start(const std::vector<ContactKey>& keys, const ContactMemory& previous,
                   ConstSpan prev_rows, Span x) const;
 
-  // APGD runs on world rows (ccp.cpp, "The APGD kernel"): a contact's
+  // APGD runs on world rows (kernel.cpp): a contact's
   // three rows are its impulse as a world vector, n x_n + t1 x_t1 + t2 x_t2,
   // and its gradient J v + b n; bilateral rows as they are. The frame is
   // orthonormal, so norms, dot products and the residual are the same.
@@ -169,8 +171,8 @@ class CcpProblem {
   // a spare past their rows (RowBuffer).
   // The extrapolated point y = ca x - cb x_old and its gradient gy = ca gx -
   // cb g_old are made where they are used and never stored (cb = 0: y = x,
-  // gy = gx, and x_old, g_old are not read): storing them cost more memory
-  // traffic than the second pass's reading x_old again.
+  // gy = gx, and x_old, g_old are not read): storing them costs more memory
+  // traffic than reading x_old again in the second pass.
   struct Momentum {
     double ca = 1.0, cb = 0.0;
   };
@@ -286,8 +288,8 @@ class CcpProblem {
   }
   // The tangents of contact k's frame, made from its stored normal once per
   // step: the scalar passes (warm start, the changes of rows, the scatter
-  // and gather outside the kernel, the safeguards) took a frame about ten
-  // times a step, a division each.
+  // and gather outside the kernel, PGS, the safeguards) take a frame about
+  // ten times a step, and making one costs a division.
   void make_tangents(std::size_t k);
   std::vector<Vec3> tangent_;
   Vec3 lever(std::size_t k, std::size_t side) const {
@@ -305,10 +307,10 @@ class CcpProblem {
   // inverse inertia's upper triangle (00 01 02 11 12 22), the inverse mass,
   // a bound on the inverse inertia's largest eigenvalue (the metric's); in
   // float, a third of the 80 bytes of SolverBodies' double Mat3 and mass,
-  // which were the pass's largest stream. scatter_bodies, and so
-  // N, uses them alone, so N stays symmetric and positive; the wall guard
-  // and PGS's own sweeps apply SolverBodies' doubles, which differ from
-  // them by float's rounding.
+  // which would be the pass's largest stream. scatter_bodies, and so N,
+  // uses them alone, so N stays symmetric and positive; the wall guard and
+  // PGS's own sweeps apply SolverBodies' doubles, which differ from them by
+  // float's rounding.
   static constexpr std::size_t kMassStride = 8;
   AlignedVector<StoredScalar> inverse_mass_;
   std::vector<BilateralRow> rows_;

@@ -35,7 +35,7 @@ namespace ces {
 // On a machine with AVX-512VL (CMakeLists.txt) the kernel below is
 // compiled for it: the same 256-bit vectors and the same arithmetic to the
 // bit, but 32 registers where AVX2 has 16, so a block's lanes stay out of
-// the stack (+10-13 % at 1e5 contacts, bench/README.md).
+// the stack. After the includes: Eigen's headers under -mavx512f demand FMA.
 #if defined(CES_KERNEL_AVX512)
 #pragma GCC push_options
 #pragma GCC target("avx512f,avx512vl,prefer-vector-width=256")
@@ -128,8 +128,8 @@ struct FrameLanes {
 // project_cone's cases on world rows, lane by lane: P = Π(z) onto
 // |P - n (n.P)| <= mu n.P. A sticking contact keeps z as it is. The sliding
 // case's square root and division are slow (tens of cycles, not pipelined),
-// so a block none of whose lanes slides skips them: 91 % of the blocks in
-// ces_pcb.yaml, where the solve then took 12 % less time.
+// so a block none of whose lanes slides, most of a flow's blocks, skips
+// them.
 [[gnu::always_inline]] inline void project_cone(const FrameLanes& F, Lanes3& z) {
   const d4* n = F.n;
   const d4 zn = n[0] * z.c[0] + n[1] * z.c[1] + n[2] * z.c[2];
@@ -282,7 +282,7 @@ template <class T>
   }
   // Four bodies' velocities as x, y, z lanes: each loaded as one vector
   // (its fourth number the next body's, unused; dv, dw have a spare) and
-  // transposed, 11 instructions where gathering lane by lane took 16.
+  // transposed, 11 instructions where gathering lane by lane takes 16.
   auto lanes = [&](const std::vector<Vec3>& v, const std::size_t* i, d4 out[3]) {
     const d4 r0 = load(v[i[0]].data()), r1 = load(v[i[1]].data()), r2 = load(v[i[2]].data()),
              r3 = load(v[i[3]].data());

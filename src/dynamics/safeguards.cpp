@@ -23,9 +23,8 @@ constexpr int kFinishSweeps = 20000;
 // A clump in contact turns by at most this much per step (limit_spin): its
 // spheres then leave the linearised rows by at most kDrift of the smallest
 // radius, and it never turns by more than kMaxTurn. Spheres turn freely.
-// (A quarter of a radius left flakes 1.08 radii in walls in the 10 ms stress
-// scene once the guards no longer undid the cap, a tenth 0.79;
-// docs/accuracy.md, section 4.)
+// (What the cap leaves in walls at a large step: docs/accuracy.md,
+// section 4.)
 constexpr double kDrift = 0.1;
 constexpr double kMaxTurn = 0.25 * kPi;
 double turn_limit(const ParticleShape& s) {
@@ -266,11 +265,11 @@ void guard_walls(Guard& c, StepStats& stats, const std::vector<std::uint8_t>* lo
 //    with f <= 0 the step cannot gain more kinetic energy than -b.x, what
 //    the bias allows (the push-out of an overlap at the recovery speed, a
 //    restitution rebound), plus what a moving wall does; the exact
-//    solution has f <= f(0) = 0. A stopped iterate need not: on the mass
-//    ratio 1:1000 scene the warm-started impulses, which the solver corrects
-//    along the heavy sphere's direction 1000 times slower than along a light
-//    grain's, threw the sphere back up at 0.41 m/s (4 x the recovery
-//    speed), a gain of 104 % of the peak kinetic energy. So if f(x) > 0,
+//    solution has f <= f(0) = 0. A stopped iterate need not: a heavy
+//    sphere on light grains (mass ratio 1:1000) keeps warm-started
+//    impulses that the solver corrects along its direction 1000 times
+//    slower than along a light grain's, and they can throw it back up at
+//    several times the recovery speed. So if f(x) > 0,
 //    the contact impulses are replaced by the best point a x on the segment
 //    from 0 to them, the joints' impulses held (an exact line search: f is
 //    quadratic along it; a x stays in the cones), which has f <= 0.
@@ -345,17 +344,16 @@ void release_sliding(Guard& c, StepStats& stats) {
 
 // The contact rows are linear in the step's motion, but a clump's spheres
 // move on arcs: turning by an angle a, a sphere at lever l leaves its row by
-// l a^2 / 2, and at a large step flakes turning by radians went into the drum
-// (docs/accuracy.md, section 4). So a clump with a contact (or a candidate
-// within its envelope) this step turns at most by turn_limit() per step, as
-// Box2D caps every body's turn at pi/4 per step. Spheres are exempt:
-// turning moves no surface. The cap only takes kinetic energy away, but it
-// moves the clump off what the solve planned for it by the spin taken
-// away times the lever, so the rows of every contact of a capped clump are
-// guarded again (guard_body_rows), with its partners whatever they
-// are. Neither is an impulse of the solve: x no longer gives v, w exactly
-// (nothing recomputes them after this) and the residual reported is that
-// before the cap.
+// l a^2 / 2, and at a large step a flake turning by radians goes into the
+// drum. So a clump with a contact (or a candidate within its envelope) this
+// step turns at most by turn_limit() per step, as Box2D caps every body's
+// turn at pi/4 per step. Spheres are exempt: turning moves no surface. The
+// cap only takes kinetic energy away, but it moves the clump off what the
+// solve planned for it by the spin taken away times the lever, so the rows
+// of every contact of a capped clump are guarded again (guard_body_rows),
+// with its partners whatever they are. Neither is an impulse of the solve:
+// x no longer gives v, w exactly (nothing recomputes them after this) and
+// the residual reported is that before the cap.
 void limit_spin(Guard& c, StepStats& stats) {
   SafeguardScratch& s = c.scratch;
   if (!s.has_clumps) return;
@@ -381,7 +379,7 @@ void limit_spin(Guard& c, StepStats& stats) {
   // Their partners move too: the walls' rows of everyone last.
   // The guards after the cap move clumps in contact in translation only: a
   // normal impulse on a sphere at the rim of a flake would spin it past the
-  // cap again (to 200-300 rad/s at 10 ms, cap 35: 3 radii into the drum).
+  // cap again, several times over at a large step, and into the drum.
   s.locked.assign(c.bodies.inv_mass.size(), 0);
   for (std::size_t i = 0; i < np; ++i)
     s.locked[i] = s.touching[i] && std::isfinite(s.max_turn[std::size_t(p.shape[i])]);

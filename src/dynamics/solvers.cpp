@@ -71,10 +71,8 @@ struct Best {
 // the projection in that metric is still the plain one, contact by contact.
 // Particles from 0.5 to 2 mm of copper and FR-4 have inverse masses 300
 // times apart; with one step for all, set by the lightest, the heavy ones'
-// impulses moved 300 times too slowly. On ces_pcb.yaml to 0.5 s the
-// residual at 50 iterations fell 16-fold (median; 12-fold at the 95th
-// percentile), and 15 iterations now do what 50 did (docs/accuracy.md,
-// section 2).
+// impulses would move 300 times too slowly (docs/accuracy.md, section 2,
+// has the iterations the reference scene needs).
 // The sums of an iteration come from the kernel's pass over the rows,
 // which makes x1's gradient and, on the guess that x1 is accepted, the next
 // trial (a rejected x1 costs a trial pass more). The kernel runs on world
