@@ -148,11 +148,11 @@ class CcpProblem {
   void warm_start(const std::vector<ContactKey>& keys, const ContactMemory& previous,
                   ConstSpan prev_rows, Span x) const;
 
-  // APGD runs on world rows (kernel.cpp): a contact's
-  // three rows are its impulse as a world vector, n x_n + t1 x_t1 + t2 x_t2,
-  // and its gradient J v + b n; bilateral rows as they are. The frame is
-  // orthonormal, so norms, dot products and the residual are the same.
-  // to_world and to_local change x between the two.
+  // APGD runs on world rows (kernel.cpp): a contact's three rows are its
+  // impulse as a world vector, n x_n + t1 x_t1 + t2 x_t2, and its gradient
+  // J v + b n; bilateral rows as they are. The frame is orthonormal, so
+  // norms, dot products and the residual are the same. to_world and
+  // to_local change x between the two.
   void to_world(ConstSpan x, Span P) const;
   void to_local(ConstSpan P, Span x) const;
   // g = N P + r in world rows. P has a spare past its rows (RowBuffer).
@@ -164,8 +164,8 @@ class CcpProblem {
   // v's rows times the square roots of their metric weights.
   void scale_by_metric(Span v) const;
 
-  // APGD's iteration in one streaming pass over the contacts (and one over
-  // the bodies), four contacts to a SIMD vector (solve_apgd), on world
+  // APGD's iteration (kernel.cpp) in one streaming pass over the contacts
+  // (and one over the bodies), four contacts to a SIMD vector, on world
   // rows: apgd_gradient makes the next trial as it goes, and apgd_step
   // makes a trial alone at the start and after a rejected one. x, x1 have
   // a spare past their rows (RowBuffer).
