@@ -11,8 +11,8 @@ namespace {
 
 // The wall guard acts on rows violated by more than this many solver
 // tolerances (m/s), but never less than kGuardFloor (below it rounding, not
-// the solve, decides a row's sign: at tolerance 0 the guard's sweeps chased
-// rounding), in at most this many sweeps (a particle in a corner touches
+// the solve, decides a row's sign: at tolerance 0 the guard's sweeps would
+// chase rounding), in at most this many sweeps (a particle in a corner touches
 // two or three walls); the sliding release on rows lifting by more.
 constexpr double kGuardFactor = 10.0, kGuardFloor = 1e-12;
 constexpr int kGuardSweeps = 4;
@@ -34,7 +34,6 @@ double turn_limit(const ParticleShape& s) {
   const double r = *std::min_element(s.radii.begin(), s.radii.end());
   return std::min(kMaxTurn, std::sqrt(2.0 * kDrift * r / lever));
 }
-
 
 // The wall guard. A solve stopped at its iteration cap can leave a wall's
 // row far from satisfied: the step 1/L is set by the stiffest row (the
