@@ -21,7 +21,8 @@ Vec3 point_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, int 
 
 }  // namespace
 
-double row_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, const BilateralRow& row) {
+double row_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w,
+                    const BilateralRow& row) {
   double s = 0.0;
   if (row.a >= 0) s += row.lin_a.dot(v[std::size_t(row.a)]) + row.ang_a.dot(w[std::size_t(row.a)]);
   if (row.b >= 0) s += row.lin_b.dot(v[std::size_t(row.b)]) + row.ang_b.dot(w[std::size_t(row.b)]);
@@ -157,7 +158,8 @@ void CcpProblem::gather_rows(const std::vector<Vec3>& v, const std::vector<Vec3>
 }
 
 void CcpProblem::add_row_impulses(ConstSpan x, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const {
-  for (std::size_t j = 0; j < rows_.size(); ++j) apply_row(*bodies_, rows_[j], x[3 * a_.size() + j], dv, dw);
+  for (std::size_t j = 0; j < rows_.size(); ++j)
+    apply_row(*bodies_, rows_[j], x[3 * a_.size() + j], dv, dw);
 }
 
 void CcpProblem::multiply(ConstSpan x, Span y) const {

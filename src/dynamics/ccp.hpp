@@ -101,7 +101,8 @@ struct BilateralRow {
   double hi = std::numeric_limits<double>::infinity();
 };
 // The row's J v at velocities v, w (without its bias).
-double row_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, const BilateralRow& row);
+double row_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w,
+                    const BilateralRow& row);
 // v, w += M^-1 J^T impulse: what the row's impulse does to its bodies.
 void apply_row(const SolverBodies& B, const BilateralRow& row, double impulse,
                std::vector<Vec3>& v, std::vector<Vec3>& w);
@@ -226,7 +227,8 @@ class CcpProblem {
   // Contact k's rows of x (its frame's) as a world vector.
   Vec3 world_impulse(std::size_t k, ConstSpan x) const;
   // The velocity of b's point of the contact relative to a's, at v, w.
-  Vec3 relative_velocity(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const {
+  Vec3 relative_velocity(std::size_t k, const std::vector<Vec3>& v,
+                         const std::vector<Vec3>& w) const {
     const auto a = std::size_t(a_[k]), b = std::size_t(b_[k]);
     return (v[b] + w[b].cross(lever_b(k))) - (v[a] + w[a].cross(lever_a(k)));
   }
