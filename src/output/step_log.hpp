@@ -31,7 +31,7 @@ struct SolverSummary {
   std::uint64_t steps_impulses_scaled = 0;
   std::uint64_t wall_corrections = 0;
   // Bodies whose wall rows the guard finished body by body, and those it
-  // could not (CcpProblem::guard_walls), summed over steps.
+  // could not (dynamics/safeguards.cpp), summed over steps.
   std::uint64_t walls_finished = 0, walls_unfinished = 0;
   std::uint64_t sliding_releases = 0;  // bodies released from their lift, summed over steps
   std::uint64_t spin_limited = 0;      // clumps in contact whose spin was capped, summed over steps
