@@ -421,11 +421,69 @@ TEST(RunOutputs, SignalStopsTheRunBetweenStepsAndSaysIncomplete) {
   interrupter.join();
   EXPECT_FALSE(r.complete);
   EXPECT_EQ(r.reason, "interrupted by SIGTERM");
+  EXPECT_EQ(r.signal, SIGTERM);
   const nlohmann::json s = read_json(partial / "summary.json");
   EXPECT_FALSE(s["complete"].get<bool>());
   EXPECT_EQ(s["reason"].get<std::string>(), "interrupted by SIGTERM");
   EXPECT_GT(s["steps"].get<int>(), 0);
   EXPECT_TRUE(fs::exists(partial / "bins.csv"));
+}
+
+// A watch due after every step sees each step once, in order; the one that
+// asks to stop ends the run there, incomplete, and the summary says so.
+TEST(RunOutputs, CallerWatchesEveryStepAndStopsTheRun) {
+  const fs::path dir = fresh_dir("watch"), partial = dir / "partial";
+  std::vector<RunProgress> seen;
+  RunOptions options{.out_dir = "", .progress = false, .quiet = true};
+  options.on_progress_every = 0.0;
+  options.on_progress = [&](const RunProgress& p) {
+    seen.push_back(p);
+    return p.steps == 40;
+  };
+  const RunResult r = run(small_run(dir), options);
+  EXPECT_FALSE(r.complete);
+  EXPECT_EQ(r.reason, "stopped by the caller");
+  EXPECT_EQ(r.signal, 0);
+  ASSERT_EQ(seen.size(), 40u);
+  for (std::size_t k = 0; k < seen.size(); ++k) {
+    EXPECT_EQ(seen[k].steps, k + 1);
+    EXPECT_DOUBLE_EQ(seen[k].end_time, 0.15);
+    EXPECT_NEAR(seen[k].time, 0.001 * double(k + 1), 1e-12);
+  }
+  EXPECT_GT(seen.back().particles, 0u);
+  EXPECT_FALSE(fs::exists(dir / "bins.csv"));
+  EXPECT_TRUE(fs::exists(partial / "bins.csv"));
+  const nlohmann::json s = read_json(partial / "summary.json");
+  EXPECT_EQ(s["reason"].get<std::string>(), "stopped by the caller");
+  EXPECT_EQ(s["steps"].get<int>(), 40);
+}
+
+// Due once a second of wall time, the watch still sees the last step.
+TEST(RunOutputs, CallerWatchSeesTheLastStep) {
+  const fs::path dir = fresh_dir("watch_end");
+  std::vector<std::uint64_t> steps;
+  RunOptions options{.out_dir = "", .progress = false, .quiet = true};
+  options.on_progress_every = 1e9;
+  options.on_progress = [&](const RunProgress& p) {
+    steps.push_back(p.steps);
+    return true;  // too late to stop anything
+  };
+  const RunResult r = run(small_run(dir), options);
+  EXPECT_TRUE(r.complete) << r.reason;
+  EXPECT_EQ(steps, std::vector<std::uint64_t>{150});
+}
+
+// The caller's thread count wins over the scene's, as --threads does.
+TEST(RunOutputs, CallerFixesTheThreadCount) {
+  const fs::path dir = fresh_dir("threads");
+  Simulation sim = small_run(dir);
+  sim.model->threads = 1;
+  RunOptions options{.out_dir = "", .progress = false, .quiet = true};
+  options.threads = 2;
+  ASSERT_TRUE(run(sim, options).complete);
+  const nlohmann::json s = read_json(dir / "summary.json");
+  EXPECT_EQ(s["threads"].get<int>(), 2);
+  EXPECT_EQ(s["threads_chosen"]["by"].get<std::string>(), "fixed");
 }
 
 TEST(RunCompare, WassersteinOfShiftedSamplesIsTheShift) {

@@ -163,6 +163,7 @@ class Runner {
   void start();
   void write_field_picture();
   void step_to_end();
+  bool caller_stops(std::uint64_t steps);
   void checkpoint();
   void write_outputs();
   void write_summary(const output::RunRecord& r);
@@ -182,12 +183,21 @@ class Runner {
   ThreadGovernor threads_;
   std::uint64_t checkpoint_steps_;  // steps between checkpoints; 0: none
   double output_seconds_ = 0.0;  // the output stage's, and the writing before and after the steps
+  double watched_at_ = 0.0;      // wall time of the caller's last on_progress
+  int stop_signal_ = 0;          // the signal that stopped the steps
   bool complete_ = false;
   std::string reason_ = kNoEnd;
 };
 
 fs::path output_dir(const Simulation& sim, const RunOptions& options) {
   return options.out_dir.empty() ? fs::path(sim.output.dir) : fs::path(options.out_dir);
+}
+
+// The thread count the caller or the scene fixes, else up to every core,
+// chosen as the run goes.
+ThreadGovernor governor(const Simulation& sim, const RunOptions& options) {
+  const int fixed = options.threads > 0 ? options.threads : sim.model->threads;
+  return ThreadGovernor(fixed > 0 ? fixed : omp_get_max_threads(), fixed == 0);
 }
 
 output::Start start_of(const std::string* resume) {
@@ -202,8 +212,7 @@ Runner::Runner(const Simulation& sim, const RunOptions& options, const std::stri
       dir_(folder_.work()),
       world_(sim),
       observers_(sim, dir_, world_, start_of(resume)),
-      threads_(sim.model->threads > 0 ? sim.model->threads : omp_get_max_threads(),
-               sim.model->threads == 0),
+      threads_(governor(sim, options)),
       checkpoint_steps_(sim.output.checkpoint_every > 0.0
                             ? std::uint64_t(std::max(
                                   1.0, std::round(sim.output.checkpoint_every / sim.model->step)))
@@ -249,7 +258,7 @@ RunResult Runner::run() {
   }
   write_outputs();
   return {complete_, complete_ ? std::string() : reason_,
-          (complete_ ? folder_.dir() : dir_).string()};
+          (complete_ ? folder_.dir() : dir_).string(), stop_signal_};
 }
 
 void Runner::step_to_end() {
@@ -257,6 +266,7 @@ void Runner::step_to_end() {
   Progress progress(options_.progress && !options_.quiet);
   while (world_.step_count() < steps) {
     if (g_stop_signal != 0) {
+      stop_signal_ = g_stop_signal;
       reason_ = g_stop_signal == SIGINT ? "interrupted by SIGINT" : "interrupted by SIGTERM";
       return;
     }
@@ -266,8 +276,25 @@ void Runner::step_to_end() {
     threads_.took(seconds_since(t0));
     if (checkpoint_steps_ > 0 && world_.step_count() % checkpoint_steps_ == 0) checkpoint();
     progress.update(world_, sim_.end_time, seconds_since(start_));
+    if (caller_stops(steps) && world_.step_count() < steps) {
+      reason_ = "stopped by the caller";
+      return;
+    }
   }
   complete_ = true;
+}
+
+// The caller's on_progress, when due: true when it asks the run to stop.
+bool Runner::caller_stops(std::uint64_t steps) {
+  if (!options_.on_progress) return false;
+  const double wall = seconds_since(start_);
+  if (wall - watched_at_ < options_.on_progress_every && world_.step_count() < steps) return false;
+  watched_at_ = wall;
+  const auto t0 = Clock::now();
+  const bool stop = options_.on_progress(
+      {world_.time(), sim_.end_time, world_.step_count(), world_.particles().size(), wall});
+  output_seconds_ += seconds_since(t0);
+  return stop;
 }
 
 // The whole state, then a summary that says how far the run got.

@@ -2,6 +2,9 @@
 // the end with the observers that write the output folder, checkpoints it
 // when the scene asks, and resumes it from a checkpoint.
 #pragma once
+#include <cstddef>
+#include <cstdint>
+#include <functional>
 #include <string>
 
 #include "sim/checkpoint.hpp"
@@ -9,16 +12,33 @@
 
 namespace ces {
 
+// Where a run is, for a caller that watches it (RunOptions::on_progress).
+struct RunProgress {
+  double time = 0.0;          // simulated (s)
+  double end_time = 0.0;      // the scene's end time (s)
+  std::uint64_t steps = 0;    // steps taken
+  std::size_t particles = 0;  // particles in the run
+  double wall = 0.0;          // wall time since the run started (s)
+};
+
 struct RunOptions {
   std::string out_dir;   // overrides Simulation::output.dir when not empty
   bool progress = false; // a progress line on stderr
   bool quiet = false;    // no end-of-run report on stdout
+  // Called between steps once on_progress_every seconds of wall time have
+  // passed since its last call, and after the last step. Returning true
+  // stops the run before its next step; it then ends incomplete, "stopped
+  // by the caller". Its time counts in the output stage.
+  std::function<bool(const RunProgress&)> on_progress = {};
+  double on_progress_every = 1.0;
+  int threads = 0;  // worker threads, as --threads; 0: the scene's (Model::threads)
 };
 
 struct RunResult {
   bool complete = false;
   std::string reason;    // why not complete ("interrupted by SIGINT", error text)
   std::string out_dir;   // where the outputs are: DIR, or DIR/partial for a run not complete
+  int signal = 0;        // SIGINT or SIGTERM when one stopped the run, else 0
 };
 
 // A new run of the scene into options.out_dir (or the scene's output.dir):
