@@ -1,7 +1,8 @@
 """Copper grade and recovery in the conductor product against drum speed.
 
-The reference separator, fed for 0.2 s and run for 0.8 s at each speed, so
-the sweep takes seconds (scenes/ces_pcb.yaml itself feeds for 2 s).
+The reference separator, fed for 0.1 s and run for 0.7 s at each speed, so
+the sweep takes seconds (scenes/ces_pcb.yaml itself feeds for 2 s and runs
+for 2 s). Recovery here is of the copper collected by then.
 """
 from pathlib import Path
 
@@ -9,7 +10,7 @@ import ces_sim
 
 scene_file = Path(__file__).resolve().parents[2] / "scenes" / "ces_pcb.yaml"
 for rpm in (30, 45, 60, 75):
-    short = {"time.end": "0.8 s", "feeds.nozzle.duration": "0.2 s"}
+    short = {"time.end": "0.7 s", "feeds.nozzle.duration": "0.1 s"}
     speed = {f"bodies.{b}.motion.rotation.speed": f"{rpm} rpm" for b in ("drum", "brush")}
     result = ces_sim.load(scene_file, set={**short, **speed}).run(f"out/sweep/{rpm}rpm")
     p = result.products
