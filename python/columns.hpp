@@ -24,8 +24,9 @@ using Table = std::vector<Column>;
 // conventions of docs/outputs.md). A column holds text when it names
 // things (collector, product, material, ...) or a cell is not a number;
 // integers when its name carries no unit, it is no fraction (grade,
-// recovery) and every cell is an integer; numbers otherwise. Throws FileNotFoundError, or ValueError naming the
-// line of a row that does not match the header.
+// recovery) and every cell is an integer; numbers otherwise. Throws
+// FileNotFoundError, or ValueError naming the line of a row that does not
+// match the header.
 Table read_csv(const std::filesystem::path& path);
 
 // The whole file; throws FileNotFoundError when it cannot be read.
