@@ -16,6 +16,7 @@
 #include <sstream>
 #include <thread>
 
+#include "output/compare.hpp"
 #include "support.hpp"
 
 namespace {
@@ -195,14 +196,14 @@ TEST(Cli, RunWritesTheOutputFilesInTheirFormats) {
                           "active_components", "warnings", "scene", "threads"})
     EXPECT_TRUE(s.contains(key)) << key;
 
+  // Tidy: a row per bin (20) or product (2) and material (2).
   const std::string bins = read_text(dir / "bins.csv");
-  EXPECT_EQ(bins.substr(0, bins.find('\n')),
-            "collector,bin,from_m,to_m,copper_count,copper_kg,fr4_count,fr4_kg");
-  EXPECT_EQ(std::count(bins.begin(), bins.end(), '\n'), 21);
+  EXPECT_EQ(bins.substr(0, bins.find('\n')), "collector,bin,from_m,to_m,material,count,mass_kg");
+  EXPECT_EQ(std::count(bins.begin(), bins.end(), '\n'), 41);
   const std::string products = read_text(dir / "products.csv");
   EXPECT_EQ(products.substr(0, products.find('\n')),
-            "collector,product,from_m,to_m,copper_kg,fr4_kg,total_kg,main_material,grade,recovery");
-  EXPECT_EQ(std::count(products.begin(), products.end(), '\n'), 3);
+            "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery");
+  EXPECT_EQ(std::count(products.begin(), products.end(), '\n'), 5);
   const std::string crossings = read_text(dir / "crossings.csv");
   EXPECT_EQ(crossings.substr(0, crossings.find('\n')),
             "id,time_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,along_m,diameter_m,mass_kg,material,"
@@ -219,6 +220,36 @@ TEST(Cli, RunWritesTheOutputFilesInTheirFormats) {
   int paths = 0;
   for (const Element& e : svg.children) paths += e.name == "path";
   EXPECT_EQ(paths, 2);  // one line per material
+}
+
+// The tidy tables hold what the summary reports: every collected particle
+// in a bin or outside them, and each product's main material (its largest
+// mass) with the summary's grade and recovery.
+TEST(Cli, TidyTablesAgreeWithTheSummary) {
+  const fs::path& dir = tiny_run("formats");
+  const nlohmann::json s = nlohmann::json::parse(read_text(dir / "summary.json"));
+  const nlohmann::json& tray = s["collectors"][0];
+  const ces::output::Table bins = ces::output::read_table(dir / "bins.csv");
+  std::uint64_t binned = 0;
+  for (const auto& row : bins.rows) binned += std::stoull(row[5]);
+  EXPECT_EQ(binned + tray["outside_bins"]["count"].get<std::uint64_t>(),
+            tray["collected"]["count"].get<std::uint64_t>());
+
+  const ces::output::Table products = ces::output::read_table(dir / "products.csv");
+  ASSERT_EQ(products.rows.size(), 4u);
+  for (std::size_t p = 0; p < 2; ++p) {
+    const auto& copper = products.rows[2 * p];
+    const auto& fr4 = products.rows[2 * p + 1];
+    const auto& main = std::stod(copper[6]) >= std::stod(fr4[6]) ? copper : fr4;
+    const nlohmann::json& summary = tray["products"][p];
+    EXPECT_EQ(main[1], summary["name"]);
+    EXPECT_EQ(main[4], summary["main_material"]);
+    EXPECT_NEAR(std::stod(main[7]), summary["grade"].get<double>(), 1e-9);
+    EXPECT_NEAR(std::stod(main[8]), summary["recovery"].get<double>(), 1e-9);
+    EXPECT_NEAR(std::stod(copper[7]) + std::stod(fr4[7]), 1.0, 1e-8);  // grades add up to 1
+    EXPECT_NEAR(std::stod(copper[6]) + std::stod(fr4[6]), summary["mass_kg"].get<double>(),
+                1e-9 * summary["mass_kg"].get<double>());
+  }
 }
 
 TEST(Cli, VtkFramesParseBackAndThePvdListsEveryFrame) {
