@@ -13,6 +13,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <regex>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -127,13 +128,6 @@ class XmlReader {
   std::string s_;
   std::size_t i_ = 0;
 };
-
-std::size_t count_numbers(const std::string& text) {
-  std::istringstream in(text);
-  std::size_t n = 0;
-  for (double v; in >> v;) ++n;
-  return n;
-}
 
 // --- Tests ----------------------------------------------------------------
 
@@ -252,34 +246,49 @@ TEST(Cli, TidyTablesAgreeWithTheSummary) {
   }
 }
 
-TEST(Cli, VtkFramesParseBackAndThePvdListsEveryFrame) {
+// The XML part of a binary .vtp: everything before its appended data.
+Element vtp_header(const fs::path& file) {
+  const std::string text = read_text(file);
+  const std::size_t appended = text.find("<AppendedData");
+  if (appended == std::string::npos) throw std::runtime_error(file.string() + ": no appended data");
+  return XmlReader(text.substr(0, appended) + "</VTKFile>").document();
+}
+
+// The files' layout; tests/vtk_readback.py reads them with VTK itself.
+TEST(Cli, VtkFramesAreBinaryAndThePvdListsEveryFile) {
   const fs::path& dir = tiny_run("formats");
   const Element pvd = XmlReader(read_text(dir / "trajectories.pvd")).document();
   ASSERT_EQ(pvd.attributes.at("type"), "Collection");
   const Element* collection = pvd.child("Collection");
   ASSERT_NE(collection, nullptr);
-  // 0, 50, ..., 400 ms.
-  ASSERT_EQ(collection->children.size(), 9u);
-  std::size_t frames_on_disk = 0;
+  // 0, 50, ..., 400 ms, each the particles and the static ramp.
+  ASSERT_EQ(collection->children.size(), 2 * 9u);
+  std::set<std::string> listed, on_disk;
+  for (const Element& dataset : collection->children)
+    listed.insert(dataset.attributes.at("file"));
   for (const auto& e : fs::directory_iterator(dir / "trajectories"))
-    frames_on_disk += e.path().extension() == ".vtp";
-  EXPECT_EQ(frames_on_disk, collection->children.size());
+    on_disk.insert("trajectories/" + e.path().filename().string());
+  EXPECT_EQ(listed, on_disk);
 
   std::size_t most_points = 0;
   for (const Element& dataset : collection->children) {
-    const Element vtp = XmlReader(read_text(dir / dataset.attributes.at("file"))).document();
+    if (dataset.attributes.at("name") != "particles") continue;
+    const Element vtp = vtp_header(dir / dataset.attributes.at("file"));
     ASSERT_EQ(vtp.attributes.at("type"), "PolyData");
+    EXPECT_EQ(vtp.attributes.at("compressor"), "vtkZLibDataCompressor");
     const Element* piece = vtp.child("PolyData")->child("Piece");
     ASSERT_NE(piece, nullptr);
     const std::size_t n = std::stoul(piece->attributes.at("NumberOfPoints"));
+    EXPECT_EQ(piece->attributes.at("NumberOfVerts"), std::to_string(n));
     most_points = std::max(most_points, n);
-    const Element* points = piece->child("Points")->child("DataArray");
-    EXPECT_EQ(count_numbers(points->text), 3 * n);
-    std::map<std::string, std::size_t> arrays;
-    for (const Element& a : piece->child("PointData")->children)
-      arrays[a.attributes.at("Name")] = count_numbers(a.text);
-    const std::map<std::string, std::size_t> expected = {
-        {"id", n}, {"diameter", n}, {"material", n}, {"charge", n}, {"velocity", 3 * n}};
+    std::set<std::string> arrays;
+    for (const Element& a : piece->child("PointData")->children) {
+      arrays.insert(a.attributes.at("Name"));
+      EXPECT_EQ(a.attributes.at("format"), "appended");
+    }
+    const std::set<std::string> expected = {
+        "id",         "diameter",    "material", "material_name",    "shape",  "shape_name",
+        "orientation", "velocity", "angular_velocity", "charge", "birth"};
     EXPECT_EQ(arrays, expected);
   }
   EXPECT_GT(most_points, 10u);

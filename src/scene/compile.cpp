@@ -710,6 +710,7 @@ class Compiler {
     else
       shape_sizes_.push_back(name == "sphere" ? 1.0 : equal_volume_diameter(shape.volume));
     model_->shapes.push_back(shape);
+    sim_.shape_names.push_back(name);
     return int(model_->shapes.size()) - 1;
   }
 

@@ -69,7 +69,7 @@ void clear_previous_outputs(const fs::path& dir) {
   }
   if (!fs::is_directory(dir / "trajectories")) return;
   for (const fs::directory_entry& e : fs::directory_iterator(dir / "trajectories"))
-    if (e.path().extension() == ".vtp" && e.path().stem().string().starts_with("frame_"))
+    if (e.path().extension() == ".vtp")
       fs::remove(e.path());
 }
 
