@@ -353,7 +353,44 @@ TEST(Cli, ReportNamesFatesProductsAndTheOutputFolder) {
        {"fed", "collected", "lost", "tray/near", "grade", "recovery", "residual", "penetration"})
     EXPECT_NE(o.out.find(text), std::string::npos) << text << " in\n" << o.out;
   EXPECT_NE(o.out.find("output: " + dir.string()), std::string::npos) << o.out;
-  EXPECT_TRUE(o.err.empty()) << "stderr is not a terminal: no progress line, got " << o.err;
+  // Not a terminal: progress lines come every 10 s, and the run is shorter.
+  EXPECT_TRUE(o.err.empty()) << o.err;
+}
+
+// Off a terminal (stderr to a file, as in a batch job's log), a progress
+// line every CES_PROGRESS_INTERVAL seconds of wall time, never more often;
+// none with --quiet.
+TEST(Cli, ProgressLinesInALogAtTheInterval) {
+  constexpr double kInterval = 0.05;  // s
+  ::setenv("CES_PROGRESS_INTERVAL", "0.05", 1);
+  const fs::path dir = fresh_dir("progress");
+  const std::string run = scene("tiny.yaml") + " --set time.end=2s --threads 1 -o " + dir.string();
+  const Outcome o = ces_sim(run);
+  const Outcome quiet = ces_sim(run + " --quiet");
+  ::setenv("CES_PROGRESS_INTERVAL", "soon", 1);
+  const Outcome bad = ces_sim(run);
+  ::unsetenv("CES_PROGRESS_INTERVAL");
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_EQ(quiet.err, "");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("CES_PROGRESS_INTERVAL=soon: expected a number of seconds"),
+            std::string::npos)
+      << bad.err;
+
+  const std::regex line(
+      R"(progress: t (\S+) / 2 s  wall (\S+) s  ETA \d+ s  particles \d+  contacts \d+)");
+  std::istringstream lines(o.err);
+  std::size_t n = 0;
+  double last_t = -1.0;
+  for (std::string text; std::getline(lines, text); ++n) {
+    std::smatch m;
+    ASSERT_TRUE(std::regex_match(text, m, line)) << text;  // no terminal control codes
+    EXPECT_GT(std::stod(m[1].str()), last_t);
+    last_t = std::stod(m[1].str());
+  }
+  const double wall = nlohmann::json::parse(read_text(dir / "summary.json"))["wall_time_s"]["total"];
+  EXPECT_GE(n, 1u) << "a run of " << wall << " s";
+  EXPECT_LE(double(n), wall / kInterval + 1.0) << o.err;
 }
 
 TEST(Cli, SigtermStopsTheRunKeepsOutputsAndExitsThree) {
