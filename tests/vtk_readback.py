@@ -1,11 +1,14 @@
 """Runs a short separator scene with trajectories in both formats and reads
-the VTK files back with VTK's own reader (python3-vtk9): every frame of the
-.pvd holds the particles of trajectories.csv with the same values, the
-clusters' spheres, the static machine and the turning drum at its pose.
+the VTK files back with VTK's own reader (python3-vtk9): every .vtp binary
+with its arrays zlib-compressed in appended data, every frame of the .pvd
+holding the particles of trajectories.csv with the same values (the last
+frame as many as the summary's balance leaves in the run), the clusters'
+spheres, the static machine and the turning drum at its pose.
 
 Usage: vtk_readback.py CES_SIM SCENE
 """
 import csv
+import json
 import math
 import subprocess
 import sys
@@ -29,7 +32,19 @@ DRUM_SPEED = 44.8 * 2 * math.pi / 60  # rad/s, clockwise seen from +z
 FLAKE_SPHERES = 19  # the built-in flake of aspect 0.2
 
 
+def check_encoding(path):
+    """Binary as ParaView users expect: every array in zlib-compressed
+    appended data, none inline as ASCII or base64."""
+    data = Path(path).read_bytes()
+    head = data[:data.index(b"<AppendedData")]
+    assert b'compressor="vtkZLibDataCompressor"' in head, path
+    assert b'<AppendedData encoding="raw">' in data, path
+    arrays = head.count(b"<DataArray")
+    assert arrays > 0 and head.count(b'format="appended"') == arrays, path
+
+
 def read_vtp(path):
+    check_encoding(path)
     reader = vtkXMLPolyDataReader()
     reader.SetFileName(str(path))
     reader.Update()
@@ -166,6 +181,12 @@ def main():
                           read_vtp(files["machine (moving)"]), float(time))
         last = max(by_time, key=float)
         assert len(frames[last]) > 100, len(frames[last])
+        # The last frame is at the end: its particles are those the run
+        # still holds by its own balance.
+        summary = json.loads((out / "summary.json").read_text())
+        close([float(last)], [summary["simulated_time_s"]], "last frame's time")
+        assert len(frames[last]) == summary["balance"]["active"]["count"], len(frames[last])
+        assert summary["trajectory_frames"] == len(by_time), summary["trajectory_frames"]
         print(f"{len(by_time)} frames read back, {len(frames[last])} particles in the last")
 
 

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <sstream>
 #include <string>
 
 #include "common/hash.hpp"
@@ -184,6 +185,34 @@ void Feeder::find_neighbours(const State& state) {
     if (outside.squaredNorm() <= reach * reach) neighbours_.push_back(i);
   }
   neighbours_valid_ = true;
+}
+
+void Feeder::save(ByteWriter& out) const {
+  std::ostringstream rng;
+  rng << rng_;
+  out.text(rng.str());
+  out.values(stats_.fed);
+  out.value(stats_.retries);
+  out.value(stats_.deferrals);
+  out.value(pending_.has_value());
+  out.value(pending_.value_or(Candidate{}));
+  out.value(max_bounding_radius_);
+}
+
+void Feeder::load(ByteReader& in) {
+  std::istringstream rng(in.text());
+  rng >> rng_;
+  if (!rng) throw CorruptData("feed '" + feed_.name + "': its random stream does not read");
+  in.values(stats_.fed);
+  if (stats_.fed.size() != feed_.mix.size())
+    throw CorruptData("feed '" + feed_.name + "': its mix has changed");
+  in.value(stats_.retries);
+  in.value(stats_.deferrals);
+  const bool pending = in.value<bool>();
+  const auto candidate = in.value<Candidate>();
+  pending_ = pending ? std::optional<Candidate>(candidate) : std::nullopt;
+  in.value(max_bounding_radius_);
+  neighbours_valid_ = false;
 }
 
 // 53 random bits from the raw engine: the same numbers with every standard

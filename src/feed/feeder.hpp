@@ -19,6 +19,7 @@
 #include <string_view>
 #include <vector>
 
+#include "common/serial.hpp"
 #include "common/tally.hpp"
 #include "feed/feed.hpp"
 #include "geometry/shapes.hpp"
@@ -52,6 +53,11 @@ class Feeder {
   double target(double t) const;
   // The fed amount in the same unit as target().
   double fed_amount() const;
+
+  // What the feed carries from one step to the next (its random stream,
+  // tallies, the particle drawn but not yet placed), for checkpoints.
+  void save(ByteWriter& out) const;
+  void load(ByteReader& in);
 
  private:
   struct Candidate {

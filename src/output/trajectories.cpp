@@ -96,7 +96,7 @@ std::vector<std::string> pick_names(const std::vector<std::size_t>& order,
 }  // namespace
 
 TrajectoryWriter::TrajectoryWriter(const std::filesystem::path& dir, const Simulation& sim,
-                                   std::vector<double> shape_size)
+                                   std::vector<double> shape_size, Start start)
     : dir_(dir),
       sim_(&sim),
       shape_size_(std::move(shape_size)),
@@ -115,8 +115,8 @@ TrajectoryWriter::TrajectoryWriter(const std::filesystem::path& dir, const Simul
     for (const NamedElectrode& e : sim.electrodes) part_names_.push_back(e.name);
     plane_ = plane_extent(sim);
   }
-  if (sim.output.trajectories.csv) {
-    csv_ = AtomicFile(dir_ / "trajectories.csv");
+  if (sim.output.trajectories.csv && start == Start::Fresh) {
+    csv_ = AppendFile(dir_ / "trajectories.csv");
     csv_.write(
         "time_s,id,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,diameter_m,material,shape,charge_c,qw,qx,qy,"
         "qz,wx_radps,wy_radps,wz_radps,birth_s\n");
@@ -135,8 +135,48 @@ void TrajectoryWriter::observe(const State& state) {
   if (csv_.is_open()) append_csv(state);
 }
 
-void TrajectoryWriter::commit() {
-  if (csv_.is_open()) csv_.commit();
+void TrajectoryWriter::close() { csv_.close(); }
+
+std::vector<std::string> TrajectoryWriter::files() const {
+  std::vector<std::string> out;
+  if (every_ <= 0.0) return out;
+  if (sim_->output.trajectories.csv) out.push_back("trajectories.csv");
+  if (!sim_->output.trajectories.vtk || frame_times_.empty()) return out;
+  out.push_back("trajectories.pvd");
+  if (has_static_machine()) out.push_back(std::string("trajectories/") + kStaticMachine);
+  for (std::size_t k = 0; k < frame_times_.size(); ++k)
+    for (const std::string& f : frame_files(k)) out.push_back("trajectories/" + f);
+  return out;
+}
+
+std::vector<std::string> TrajectoryWriter::frame_files(std::size_t frame) const {
+  std::vector<std::string> out = {frame_name(frame)};
+  if (clusters_) out.push_back(frame_name(frame, "_spheres"));
+  if (!moving_bodies_.empty()) out.push_back(frame_name(frame, "_machine"));
+  return out;
+}
+
+void TrajectoryWriter::save(ByteWriter& out) {
+  out.value(next_frame_);
+  out.values(frame_times_);
+  out.value(csv_.flush());
+}
+
+void TrajectoryWriter::load(ByteReader& in) {
+  in.value(next_frame_);
+  in.values(frame_times_);
+  const auto length = in.value<std::uint64_t>();
+  if (every_ <= 0.0) return;
+  if (sim_->output.trajectories.csv) csv_ = AppendFile(dir_ / "trajectories.csv", length);
+  if (!sim_->output.trajectories.vtk) return;
+  // Frames after the checkpoint: written again as the run goes on.
+  for (std::size_t k = frame_times_.size();; ++k) {
+    bool removed = false;
+    for (const std::string& f : frame_files(k))
+      removed = std::filesystem::remove(dir_ / "trajectories" / f) || removed;
+    if (!removed) break;
+  }
+  if (!frame_times_.empty()) write_pvd();
 }
 
 void TrajectoryWriter::sort_by_id(const Particles& p) {
@@ -155,10 +195,8 @@ void TrajectoryWriter::write_vtk(const State& state) {
   const std::size_t frame = frame_times_.size();
   write_file_atomic(folder / frame_name(frame), particles_vtp(state));
   if (clusters_) write_file_atomic(folder / frame_name(frame, "_spheres"), spheres_vtp(state));
-  if (!static_written_ && has_static_machine()) {
+  if (frame == 0 && has_static_machine())  // once: every frame lists it
     write_file_atomic(folder / kStaticMachine, machine_vtp(state, static_bodies_, true));
-    static_written_ = true;
-  }
   if (!moving_bodies_.empty())
     write_file_atomic(folder / frame_name(frame, "_machine"),
                       machine_vtp(state, moving_bodies_, false));

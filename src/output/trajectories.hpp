@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "common/serial.hpp"
 #include "model/state.hpp"
 #include "output/files.hpp"
 #include "output/surfaces.hpp"
@@ -29,13 +30,20 @@ namespace ces::output {
 class TrajectoryWriter {
  public:
   TrajectoryWriter(const std::filesystem::path& dir, const Simulation& sim,
-                   std::vector<double> shape_size);
+                   std::vector<double> shape_size, Start start = Start::Fresh);
 
   // Writes a frame if one is due at state.time.
   void observe(const State& state);
-  // Publishes trajectories.csv.
-  void commit();
+  // trajectories.csv complete on the disk (the run's end).
+  void close();
   std::size_t frames() const { return frame_times_.size(); }
+  // The files written so far, relative to the output folder.
+  std::vector<std::string> files() const;
+
+  // The frames so far and trajectories.csv's length, for checkpoints; load()
+  // removes the frames written after the checkpoint and cuts the csv back.
+  void save(ByteWriter& out);
+  void load(ByteReader& in);
 
  private:
   void sort_by_id(const Particles& p);
@@ -45,6 +53,8 @@ class TrajectoryWriter {
   std::string machine_vtp(const State& state, const std::vector<int>& bodies,
                           bool electrodes) const;
   void write_pvd();
+  // The .vtp files of a frame, relative to trajectories/.
+  std::vector<std::string> frame_files(std::size_t frame) const;
   void append_csv(const State& state);
   double diameter(const Particles& p, std::size_t i) const;
   bool has_static_machine() const { return !static_bodies_.empty() || !sim_->electrodes.empty(); }
@@ -55,13 +65,12 @@ class TrajectoryWriter {
   double every_ = 0.0;
   std::uint64_t next_frame_ = 0;
   std::vector<double> frame_times_;
-  AtomicFile csv_;
+  AppendFile csv_;
   std::vector<std::size_t> order_;  // particle indices by id
   std::string text_;                // reused frame buffer
   std::vector<std::string> material_names_, shape_names_, part_names_;
   std::vector<int> static_bodies_, moving_bodies_;  // Model::bodies indices
   bool clusters_ = false;         // some shape has more than one sphere
-  bool static_written_ = false;   // machine_static.vtp
   PlaneExtent plane_;
 };
 
