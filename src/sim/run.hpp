@@ -12,9 +12,9 @@ namespace ces {
 struct RunOptions {
   std::string out_dir;   // overrides Simulation::output.dir when not empty
   bool progress = false; // a progress line on stderr, redrawn in place (a terminal)
+  bool quiet = false;    // no end-of-run report on stdout
   // s of wall time: otherwise a progress line on stderr this often (a log); 0: none.
   double progress_interval = 0.0;
-  bool quiet = false;    // no end-of-run report on stdout
 };
 
 struct RunResult {
