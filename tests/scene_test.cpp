@@ -517,6 +517,17 @@ TEST(SceneOverrides, CreateNestedSection) {
   EXPECT_EQ(sim.model->gravity, Vec3(0, -9.81, 0));
 }
 
+// The reference separator, a newcomer's first run, writes frames to open in
+// ParaView: VTK, at least ten over the run, and coarse (no more than one
+// per 100 steps).
+TEST(SceneOverrides, ReferenceSeparatorWritesCoarseVtkFrames) {
+  const Simulation sim = load(kScenes + "ces_pcb.yaml");
+  const double every = sim.output.trajectories.every;
+  EXPECT_TRUE(sim.output.trajectories.vtk);
+  EXPECT_GE(sim.end_time / every, 10.0);
+  EXPECT_GE(every / sim.model->step, 100.0);
+}
+
 // A scene's trajectories switched off from the command line.
 TEST(SceneOverrides, TrajectoriesFormatNoneWritesNoFrames) {
   TempDir dir;
