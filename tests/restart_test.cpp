@@ -114,6 +114,8 @@ TEST(Restart, KilledAtARandomMomentResumesToTheSameBytes) {
   for (const char* name : {"machine_static.vtp", "frame_000010_spheres.vtp",
                            "frame_000010_machine.vtp"})
     EXPECT_TRUE(fs::exists(whole / "trajectories" / name)) << name;
+  EXPECT_EQ(test::report_data(whole / "report.html")["frames"],
+            test::report_data(killed / "report.html")["frames"]);
   EXPECT_FALSE(fs::exists(killed / "partial"));
 }
 

@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "dynamics/isa.hpp"
 #include "output/compare.hpp"
 #include "output/files.hpp"
 #include "scene/scene.hpp"
@@ -159,19 +160,18 @@ int compare(const Args& args) {
 
 struct StudyArgs {
   ces::study::Options options;
+  std::string scheduler = "local";
   std::vector<std::string> vary;
   std::optional<std::size_t> only_case;
   bool list = false;
 };
 
 constexpr const char* kStudyHelp =
-    "Cases run in parallel as separate processes, in DIR/case_K. To spread them over\n"
-    "machines, run single cases, then the same study command without --case: cases\n"
-    "already complete are not rerun, it only measures and writes study.csv/.svg:\n"
-    "  ces-sim study s.yaml --vary time.step=2ms,1ms --list-cases -o st | cut -d' ' -f1 |\n"
-    "    parallel ces-sim study s.yaml --vary time.step=2ms,1ms -o st --case {}\n"
-    "  # Slurm: sbatch --array=0-1 --wrap 'ces-sim study s.yaml --vary time.step=2ms,1ms\n"
-    "  #   -o st --case $SLURM_ARRAY_TASK_ID'\n"
+    "Cases run as separate processes, in DIR/case_K. A case already complete is not\n"
+    "run again, so the same command without --case or --scheduler only measures.\n"
+    "  ces-sim study s.yaml --vary time.step=2ms,1ms -o st --scheduler parallel --jobs 8\n"
+    "  ces-sim study s.yaml --vary time.step=2ms,1ms -o st --scheduler slurm\n"
+    "    # then: sbatch st/study.sbatch, and when the array is done:\n"
     "  ces-sim study s.yaml --vary time.step=2ms,1ms -o st\n";
 
 CLI::App* add_study_command(CLI::App& app, Args& args, StudyArgs& study) {
@@ -192,6 +192,11 @@ CLI::App* add_study_command(CLI::App& app, Args& args, StudyArgs& study) {
   cmd->add_option("--jobs", study.options.jobs, "Cases at once (default: the number of cores)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--case", study.only_case, "Run only case K (see --list-cases)");
+  cmd->add_option("--scheduler", study.scheduler,
+                  "Who runs the cases: local (this process, --jobs at a time), parallel (GNU "
+                  "parallel, --jobs at a time, then measured here) or slurm (writes a job-array "
+                  "script, DIR/study.sbatch, and prints how to submit it)")
+      ->check(CLI::IsMember({"local", "parallel", "slurm"}));
   cmd->add_flag("--list-cases", study.list, "Print one line per case: K and its --set list");
   cmd->footer(kStudyHelp);
   return cmd;
@@ -205,6 +210,7 @@ int study(const Args& args, StudyArgs& study) {
     o.seed = args.seed;
     o.threads = args.threads;
     o.only_case = study.only_case;
+    o.scheduler = ces::study::parse_scheduler(study.scheduler);
     for (const std::string& v : study.vary) o.axes.push_back(ces::study::parse_axis(v));
     if (study.list) {
       std::fputs(ces::study::list_cases(o).c_str(), stdout);
@@ -266,7 +272,9 @@ int dispatch(const CLI::App& app, const CLI::App* validate_cmd, const CLI::App* 
 int main(int argc, char** argv) {
   Args args;
   CLI::App app{"ces-sim: granular flow in corona electrostatic separators (DVI multibody)"};
-  app.set_version_flag("--version", std::string("ces-sim ") + CES_VERSION);
+  app.set_version_flag("--version", [] {
+    return std::string("ces-sim ") + CES_VERSION + "\nsolver kernel: " + ces::kernel_description();
+  });
   app.footer(kExitCodes);
   app.add_option("scene", args.scene, "Scene file (.yaml or .json)");
   app.add_option("-o,--out", args.out_dir, "Output folder (default: the scene's output.dir)");
@@ -312,6 +320,12 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? kSuccess : kBadInput;
+  }
+  try {
+    ces::kernel_isa();  // here, not in the first step: a bad CES_KERNEL is an input error
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "ces-sim: %s\n", e.what());
+    return kBadInput;
   }
   if (study_cmd->parsed()) return study(args, study_args);
   return dispatch(app, validate_cmd, schema_cmd, compare_cmd, resume_cmd, args);

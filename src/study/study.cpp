@@ -19,6 +19,7 @@
 #include "output/compare.hpp"
 #include "output/files.hpp"
 #include "output/format.hpp"
+#include "output/report_page.hpp"
 #include "model/model.hpp"
 #include "scene/scene.hpp"
 
@@ -144,6 +145,74 @@ ProductFigures main_material_figures(const fs::path& file) {
   return figures;
 }
 
+// The study command's own arguments (after "study"), but for --case,
+// --jobs and --scheduler: what every case command and the final measuring
+// command share.
+std::vector<std::string> study_arguments(const Options& o) {
+  std::vector<std::string> args{fs::absolute(o.scene).string()};
+  for (const Axis& a : o.axes) {
+    std::string values;
+    for (const std::string& v : a.values) values += (values.empty() ? "" : ",") + v;
+    args.insert(args.end(), {"--vary", a.key + "=" + values});
+  }
+  for (const auto& [k, v] : o.base_sets) args.insert(args.end(), {"--set", k + "=" + v});
+  if (o.seed) args.insert(args.end(), {"--seed", std::to_string(*o.seed)});
+  if (o.threads) args.insert(args.end(), {"--threads", std::to_string(*o.threads)});
+  if (!o.reference.empty()) args.insert(args.end(), {"--reference", fs::absolute(o.reference).string()});
+  args.insert(args.end(), {"-o", fs::absolute(o.out_dir).string()});
+  return args;
+}
+
+// Single quotes, with any single quote in the text closed and escaped.
+std::string shell_quoted(const std::string& s) {
+  std::string out = "'";
+  for (const char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+std::string this_binary(const Options& o) {
+  std::error_code error;
+  const fs::path real = fs::read_symlink(o.binary, error);
+  return error ? o.binary : real.string();
+}
+
+// This binary's study command, quoted for a shell, without --case.
+std::string study_command(const Options& o) {
+  std::string command = shell_quoted(this_binary(o)) + " study";
+  for (const std::string& a : study_arguments(o)) command.append(" ").append(shell_quoted(a));
+  return command;
+}
+
+constexpr const char* kCommands = "cases.sh";  // one command per case (case_commands)
+
+// GNU parallel runs the case commands, `jobs` at a time; false if it is
+// missing or a case failed.
+bool run_with_parallel(const Options& o) {
+  fs::create_directories(o.out_dir);
+  output::write_file_atomic(o.out_dir / kCommands, case_commands(o));
+  const int jobs = o.jobs > 0 ? o.jobs : cores();
+  const std::string command = "parallel --will-cite --jobs " + std::to_string(jobs) +
+                              " --halt never < " + shell_quoted((o.out_dir / kCommands).string());
+  if (std::system("command -v parallel > /dev/null 2>&1") != 0)
+    throw std::invalid_argument(
+        "--scheduler parallel: GNU parallel is not installed (Debian: apt-get install parallel)");
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+int write_slurm(const Options& o) {
+  fs::create_directories(o.out_dir);
+  output::write_file_atomic(o.out_dir / kCommands, case_commands(o));
+  const fs::path script = o.out_dir / "study.sbatch";
+  output::write_file_atomic(script, slurm_script(o));
+  const std::string measure = study_command(o);
+  std::printf("wrote %s (%zu array tasks, one per case)\nsubmit, then measure when the array is done:\n"
+              "  jid=$(sbatch --parsable %s)\n"
+              "  sbatch --dependency=afterok:$jid --wrap \"%s\"\n",
+              script.c_str(), make_cases(o.axes).size(), script.c_str(), measure.c_str());
+  return 0;
+}
+
 Row read_row(const Options& o, const Case& c, const fs::path& reference) {
   Row r;
   r.c = c;
@@ -179,6 +248,14 @@ std::string series(const Row& r) {
     label += (label.empty() ? "" : " ") + v;
   }
   return !label.empty() ? label : dem ? "dem" : r.method;
+}
+
+// What varies along a series' line: the case's step and iteration cap.
+std::string point_label(const Row& r) {
+  std::string label;
+  for (const auto& [k, v] : r.c.sets)
+    if (k == "time.step" || k == "solver.max_iterations") label += (label.empty() ? "" : " ") + v;
+  return !label.empty() ? label : "case " + std::to_string(r.c.index);
 }
 
 std::string xml_escaped(const std::string& s) {
@@ -227,12 +304,17 @@ void axes_svg(const Frame& f, std::ostringstream& out) {
 }  // namespace
 
 std::string study_svg(const std::vector<Row>& rows) {
-  std::map<std::string, std::vector<std::pair<double, double>>> lines;  // series -> (wall, error)
+  struct Point {
+    double wall, error;
+    std::string label;
+    bool operator<(const Point& o) const { return wall < o.wall; }
+  };
+  std::map<std::string, std::vector<Point>> lines;  // by series
   double wmin = 1e300, wmax = 0, emin = 1e300, emax = 0;
   for (const Row& r : rows) {
     const double e = r.errors.w1_max_mm;
     if (!r.complete || r.wall_s <= 0 || !(e > 0) || std::isinf(e)) continue;  // no log of 0
-    lines[series(r)].emplace_back(r.wall_s, e);
+    lines[series(r)].push_back({r.wall_s, e, point_label(r)});
     wmin = std::min(wmin, r.wall_s), wmax = std::max(wmax, r.wall_s);
     emin = std::min(emin, e), emax = std::max(emax, e);
   }
@@ -251,11 +333,12 @@ std::string study_svg(const std::vector<Row>& rows) {
     std::sort(points.begin(), points.end());
     const char* colour = colours[n % 6];
     out << "<polyline fill='none' stroke='" << colour << "' points='";
-    for (const auto& [w, e] : points) out << f.px(w) << "," << f.py(e) << " ";
+    for (const Point& p : points) out << f.px(p.wall) << "," << f.py(p.error) << " ";
     out << "'/>\n";
-    for (const auto& [w, e] : points)
-      out << "<circle cx='" << f.px(w) << "' cy='" << f.py(e) << "' r='3' fill='" << colour
-          << "'/>\n";
+    for (const Point& p : points)
+      out << "<circle cx='" << f.px(p.wall) << "' cy='" << f.py(p.error) << "' r='3' fill='"
+          << colour << "'/><text x='" << f.px(p.wall) + 5 << "' y='" << f.py(p.error) - 5
+          << "' font-size='10' fill='" << colour << "'>" << xml_escaped(p.label) << "</text>\n";
     const double ly = f.top + 10 + 18 * n++;
     out << "<line x1='515' y1='" << ly << "' x2='535' y2='" << ly << "' stroke='" << colour
         << "' stroke-width='2'/><text x='540' y='" << ly + 4 << "'>" << xml_escaped(name) << "</text>\n";
@@ -421,6 +504,53 @@ std::string study_table(const std::vector<Axis>& axes, const std::vector<Row>& r
   return out;
 }
 
+std::string study_report(const std::vector<Case>& cases, const fs::path& reference,
+                         const std::string& table, const std::string& svg) {
+  std::string links;
+  for (const Case& c : cases) {
+    const std::string k = std::to_string(c.index);
+    links += "<a href=\"case_" + k + "/report.html\">case " + k + "</a> ";
+  }
+  return "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+         "<title>ces-sim study</title>\n<style>body { font: 14px Helvetica, Arial, sans-serif; "
+         "margin: 24px auto; max-width: 980px; } img { max-width: 100%; }</style>\n</head>\n"
+         "<body data-rendered=\"ok\">\n<h1>Study</h1>\n<p>reference: " +
+         xml_escaped(reference.string()) + "</p>\n<img alt=\"work-precision\" "
+         "src=\"data:image/svg+xml;base64," + output::base64(svg) + "\">\n<pre>" +
+         xml_escaped(table) + "</pre>\n<p>each case's report: " + links + "</p>\n</body>\n</html>\n";
+}
+
+Scheduler parse_scheduler(const std::string& name) {
+  if (name == "local") return Scheduler::Local;
+  if (name == "parallel") return Scheduler::Parallel;
+  if (name == "slurm") return Scheduler::Slurm;
+  throw std::invalid_argument("--scheduler " + name + ": expected local, parallel or slurm");
+}
+
+std::string case_commands(const Options& o) {
+  std::string text;
+  const std::string command = study_command(o);
+  for (const Case& c : make_cases(o.axes))
+    text.append(command).append(" --case ").append(std::to_string(c.index)).append("\n");
+  return text;
+}
+
+std::string slurm_script(const Options& o) {
+  const std::size_t n = make_cases(o.axes).size();
+  const fs::path commands = fs::absolute(o.out_dir / kCommands);
+  return "#!/bin/bash\n"
+         "# ces-sim study: one array task per case. Submit with sbatch; when the array\n"
+         "# has run, the same study command without --scheduler measures the cases.\n"
+         "#SBATCH --job-name=ces-study\n"
+         "#SBATCH --array=0-" + std::to_string(n - 1) + "\n"
+         "#SBATCH --ntasks=1\n"
+         "#SBATCH --output=" + fs::absolute(o.out_dir).string() + "/slurm-%A_%a.out\n"
+         "set -euo pipefail\n"
+         "line=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" " + shell_quoted(commands.string()) +
+         ")\n"
+         "bash -c \"$line\"\n";
+}
+
 std::string list_cases(const Options& o) {
   std::string text;
   for (const Case& c : make_cases(o.axes)) {
@@ -432,6 +562,8 @@ std::string list_cases(const Options& o) {
 }
 
 int run(const Options& o) {
+  if (o.scheduler == Scheduler::Slurm) return write_slurm(o);
+  if (o.scheduler == Scheduler::Parallel && !o.only_case && !run_with_parallel(o)) return 3;
   const std::vector<Case> cases = make_cases(o.axes);
   if (o.only_case) {
     if (*o.only_case >= cases.size())
@@ -445,8 +577,10 @@ int run(const Options& o) {
   std::vector<Row> rows;
   for (const Case& c : cases) rows.push_back(read_row(o, c, reference));
   output::write_file_atomic(o.out_dir / "study.csv", study_csv(o.axes, rows));
-  output::write_file_atomic(o.out_dir / "study.svg", study_svg(rows));
-  std::printf("reference: %s\n%s", reference.c_str(), study_table(o.axes, rows).c_str());
+  const std::string svg = study_svg(rows), table = study_table(o.axes, rows);
+  output::write_file_atomic(o.out_dir / "study.svg", svg);
+  output::write_file_atomic(o.out_dir / "report.html", study_report(cases, reference, table, svg));
+  std::printf("reference: %s\n%s", reference.c_str(), table.c_str());
   return ok ? 0 : 3;
 }
 
