@@ -13,9 +13,11 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <regex>
+#include <set>
 #include <sstream>
 #include <thread>
 
+#include "output/compare.hpp"
 #include "support.hpp"
 
 namespace {
@@ -127,13 +129,6 @@ class XmlReader {
   std::size_t i_ = 0;
 };
 
-std::size_t count_numbers(const std::string& text) {
-  std::istringstream in(text);
-  std::size_t n = 0;
-  for (double v; in >> v;) ++n;
-  return n;
-}
-
 // --- Tests ----------------------------------------------------------------
 
 TEST(Cli, VersionSchemaAndHelp) {
@@ -195,14 +190,14 @@ TEST(Cli, RunWritesTheOutputFilesInTheirFormats) {
                           "active_components", "warnings", "scene", "threads"})
     EXPECT_TRUE(s.contains(key)) << key;
 
+  // Tidy: a row per bin (20) or product (2) and material (2).
   const std::string bins = read_text(dir / "bins.csv");
-  EXPECT_EQ(bins.substr(0, bins.find('\n')),
-            "collector,bin,from_m,to_m,copper_count,copper_kg,fr4_count,fr4_kg");
-  EXPECT_EQ(std::count(bins.begin(), bins.end(), '\n'), 21);
+  EXPECT_EQ(bins.substr(0, bins.find('\n')), "collector,bin,from_m,to_m,material,count,mass_kg");
+  EXPECT_EQ(std::count(bins.begin(), bins.end(), '\n'), 41);
   const std::string products = read_text(dir / "products.csv");
   EXPECT_EQ(products.substr(0, products.find('\n')),
-            "collector,product,from_m,to_m,copper_kg,fr4_kg,total_kg,main_material,grade,recovery");
-  EXPECT_EQ(std::count(products.begin(), products.end(), '\n'), 3);
+            "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery");
+  EXPECT_EQ(std::count(products.begin(), products.end(), '\n'), 5);
   const std::string crossings = read_text(dir / "crossings.csv");
   EXPECT_EQ(crossings.substr(0, crossings.find('\n')),
             "id,time_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,along_m,diameter_m,mass_kg,material,"
@@ -221,34 +216,79 @@ TEST(Cli, RunWritesTheOutputFilesInTheirFormats) {
   EXPECT_EQ(paths, 2);  // one line per material
 }
 
-TEST(Cli, VtkFramesParseBackAndThePvdListsEveryFrame) {
+// The tidy tables hold what the summary reports: every collected particle
+// in a bin or outside them, and each product's main material (its largest
+// mass) with the summary's grade and recovery.
+TEST(Cli, TidyTablesAgreeWithTheSummary) {
+  const fs::path& dir = tiny_run("formats");
+  const nlohmann::json s = nlohmann::json::parse(read_text(dir / "summary.json"));
+  const nlohmann::json& tray = s["collectors"][0];
+  const ces::output::Table bins = ces::output::read_table(dir / "bins.csv");
+  std::uint64_t binned = 0;
+  for (const auto& row : bins.rows) binned += std::stoull(row[5]);
+  EXPECT_EQ(binned + tray["outside_bins"]["count"].get<std::uint64_t>(),
+            tray["collected"]["count"].get<std::uint64_t>());
+
+  const ces::output::Table products = ces::output::read_table(dir / "products.csv");
+  ASSERT_EQ(products.rows.size(), 4u);
+  for (std::size_t p = 0; p < 2; ++p) {
+    const auto& copper = products.rows[2 * p];
+    const auto& fr4 = products.rows[2 * p + 1];
+    const auto& main = std::stod(copper[6]) >= std::stod(fr4[6]) ? copper : fr4;
+    const nlohmann::json& summary = tray["products"][p];
+    EXPECT_EQ(main[1], summary["name"]);
+    EXPECT_EQ(main[4], summary["main_material"]);
+    EXPECT_NEAR(std::stod(main[7]), summary["grade"].get<double>(), 1e-9);
+    EXPECT_NEAR(std::stod(main[8]), summary["recovery"].get<double>(), 1e-9);
+    EXPECT_NEAR(std::stod(copper[7]) + std::stod(fr4[7]), 1.0, 1e-8);  // grades add up to 1
+    EXPECT_NEAR(std::stod(copper[6]) + std::stod(fr4[6]), summary["mass_kg"].get<double>(),
+                1e-9 * summary["mass_kg"].get<double>());
+  }
+}
+
+// The XML part of a binary .vtp: everything before its appended data.
+Element vtp_header(const fs::path& file) {
+  const std::string text = read_text(file);
+  const std::size_t appended = text.find("<AppendedData");
+  if (appended == std::string::npos) throw std::runtime_error(file.string() + ": no appended data");
+  return XmlReader(text.substr(0, appended) + "</VTKFile>").document();
+}
+
+// The files' layout; tests/vtk_readback.py reads them with VTK itself.
+TEST(Cli, VtkFramesAreBinaryAndThePvdListsEveryFile) {
   const fs::path& dir = tiny_run("formats");
   const Element pvd = XmlReader(read_text(dir / "trajectories.pvd")).document();
   ASSERT_EQ(pvd.attributes.at("type"), "Collection");
   const Element* collection = pvd.child("Collection");
   ASSERT_NE(collection, nullptr);
-  // 0, 50, ..., 400 ms.
-  ASSERT_EQ(collection->children.size(), 9u);
-  std::size_t frames_on_disk = 0;
+  // 0, 50, ..., 400 ms, each the particles and the static ramp.
+  ASSERT_EQ(collection->children.size(), 2 * 9u);
+  std::set<std::string> listed, on_disk;
+  for (const Element& dataset : collection->children)
+    listed.insert(dataset.attributes.at("file"));
   for (const auto& e : fs::directory_iterator(dir / "trajectories"))
-    frames_on_disk += e.path().extension() == ".vtp";
-  EXPECT_EQ(frames_on_disk, collection->children.size());
+    on_disk.insert("trajectories/" + e.path().filename().string());
+  EXPECT_EQ(listed, on_disk);
 
   std::size_t most_points = 0;
   for (const Element& dataset : collection->children) {
-    const Element vtp = XmlReader(read_text(dir / dataset.attributes.at("file"))).document();
+    if (dataset.attributes.at("name") != "particles") continue;
+    const Element vtp = vtp_header(dir / dataset.attributes.at("file"));
     ASSERT_EQ(vtp.attributes.at("type"), "PolyData");
+    EXPECT_EQ(vtp.attributes.at("compressor"), "vtkZLibDataCompressor");
     const Element* piece = vtp.child("PolyData")->child("Piece");
     ASSERT_NE(piece, nullptr);
     const std::size_t n = std::stoul(piece->attributes.at("NumberOfPoints"));
+    EXPECT_EQ(piece->attributes.at("NumberOfVerts"), std::to_string(n));
     most_points = std::max(most_points, n);
-    const Element* points = piece->child("Points")->child("DataArray");
-    EXPECT_EQ(count_numbers(points->text), 3 * n);
-    std::map<std::string, std::size_t> arrays;
-    for (const Element& a : piece->child("PointData")->children)
-      arrays[a.attributes.at("Name")] = count_numbers(a.text);
-    const std::map<std::string, std::size_t> expected = {
-        {"id", n}, {"diameter", n}, {"material", n}, {"charge", n}, {"velocity", 3 * n}};
+    std::set<std::string> arrays;
+    for (const Element& a : piece->child("PointData")->children) {
+      arrays.insert(a.attributes.at("Name"));
+      EXPECT_EQ(a.attributes.at("format"), "appended");
+    }
+    const std::set<std::string> expected = {
+        "id",         "diameter",    "material", "material_name",    "shape",  "shape_name",
+        "orientation", "velocity", "angular_velocity", "charge", "birth"};
     EXPECT_EQ(arrays, expected);
   }
   EXPECT_GT(most_points, 10u);
@@ -313,7 +353,44 @@ TEST(Cli, ReportNamesFatesProductsAndTheOutputFolder) {
        {"fed", "collected", "lost", "tray/near", "grade", "recovery", "residual", "penetration"})
     EXPECT_NE(o.out.find(text), std::string::npos) << text << " in\n" << o.out;
   EXPECT_NE(o.out.find("output: " + dir.string()), std::string::npos) << o.out;
-  EXPECT_TRUE(o.err.empty()) << "stderr is not a terminal: no progress line, got " << o.err;
+  // Not a terminal: progress lines come every 10 s, and the run is shorter.
+  EXPECT_TRUE(o.err.empty()) << o.err;
+}
+
+// Off a terminal (stderr to a file, as in a batch job's log), a progress
+// line every CES_PROGRESS_INTERVAL seconds of wall time, never more often;
+// none with --quiet.
+TEST(Cli, ProgressLinesInALogAtTheInterval) {
+  constexpr double kInterval = 0.05;  // s
+  ::setenv("CES_PROGRESS_INTERVAL", "0.05", 1);
+  const fs::path dir = fresh_dir("progress");
+  const std::string run = scene("tiny.yaml") + " --set time.end=2s --threads 1 -o " + dir.string();
+  const Outcome o = ces_sim(run);
+  const Outcome quiet = ces_sim(run + " --quiet");
+  ::setenv("CES_PROGRESS_INTERVAL", "soon", 1);
+  const Outcome bad = ces_sim(run);
+  ::unsetenv("CES_PROGRESS_INTERVAL");
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_EQ(quiet.err, "");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("CES_PROGRESS_INTERVAL=soon: expected a number of seconds"),
+            std::string::npos)
+      << bad.err;
+
+  const std::regex line(
+      R"(progress: t (\S+) / 2 s  wall (\S+) s  ETA \d+ s  particles \d+  contacts \d+)");
+  std::istringstream lines(o.err);
+  std::size_t n = 0;
+  double last_t = -1.0;
+  for (std::string text; std::getline(lines, text); ++n) {
+    std::smatch m;
+    ASSERT_TRUE(std::regex_match(text, m, line)) << text;  // no terminal control codes
+    EXPECT_GT(std::stod(m[1].str()), last_t);
+    last_t = std::stod(m[1].str());
+  }
+  const double wall = nlohmann::json::parse(read_text(dir / "summary.json"))["wall_time_s"]["total"];
+  EXPECT_GE(n, 1u) << "a run of " << wall << " s";
+  EXPECT_LE(double(n), wall / kInterval + 1.0) << o.err;
 }
 
 TEST(Cli, SigtermStopsTheRunKeepsItsOutputsAsideAndExitsThree) {

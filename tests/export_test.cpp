@@ -701,12 +701,15 @@ std::map<std::string, double> product_masses(const fs::path& csv, const std::str
   std::getline(in, line);
   std::vector<std::string> header;
   for (std::istringstream h(line); std::getline(h, line, ',');) header.push_back(line);
-  const auto column = std::find(header.begin(), header.end(), material + "_kg") - header.begin();
+  const auto column = [&](const char* name) {
+    return std::size_t(std::find(header.begin(), header.end(), name) - header.begin());
+  };
   std::map<std::string, double> mass;
   while (std::getline(in, line)) {
     std::vector<std::string> cells;
     for (std::istringstream c(line); std::getline(c, line, ',');) cells.push_back(line);
-    mass[cells.at(1)] = std::stod(cells.at(std::size_t(column)));
+    if (cells.at(column("material")) == material)
+      mass[cells.at(column("product"))] = std::stod(cells.at(column("mass_kg")));
   }
   return mass;
 }

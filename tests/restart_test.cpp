@@ -29,10 +29,19 @@ const std::string kBinary = CES_SIM_BINARY;
 const std::string kTiny = std::string(CES_TEST_DIR) + "/scenes/tiny.yaml";
 
 // tiny.yaml fed for 2 s and run to 2.5 s (a few seconds of wall time), with
-// a checkpoint every 0.1 s and frames every 50 ms as VTK and CSV.
+// a checkpoint every 0.1 s and frames every 50 ms as VTK and CSV; its copper
+// as flakes and a wheel turning clear of the flow beside its ramp, so that
+// the frames hold every kind of file: particles, spheres, the static and the
+// moving machine.
 const std::vector<std::string> kLongerRun = {
     "--set", "time.end=2.5 s", "--set", "feeds.hopper.duration=2 s", "--set",
-    "output.checkpoint.every=0.1 s", "--quiet"};
+    "output.checkpoint.every=0.1 s", "--set", "feeds.hopper.mix.0.shape=flake", "--set",
+    "bodies=[{name: ramp, geometry: {box: {size: [0.1, 0.01, 0.04]}}, "
+    "pose: {rotation: {axis: [0, 0, 1], angle: -30 deg}}, material: steel}, "
+    "{name: wheel, geometry: {cylinder: {radius: 0.02, length: 0.04}}, "
+    "pose: {position: [0.25, 0.15, 0]}, material: steel, "
+    "motion: {rotation: {axis: [0, 0, 1], center: [0.25, 0.15, 0], speed: 60 rpm}}}]",
+    "--quiet"};
 
 pid_t start_run(const fs::path& dir) {
   const pid_t pid = ::fork();
@@ -102,6 +111,9 @@ TEST(Restart, KilledAtARandomMomentResumesToTheSameBytes) {
     EXPECT_EQ(read_text(e.path()), read_text(killed / "trajectories" / name)) << name;
   }
   EXPECT_GE(frames, 40u);
+  for (const char* name : {"machine_static.vtp", "frame_000010_spheres.vtp",
+                           "frame_000010_machine.vtp"})
+    EXPECT_TRUE(fs::exists(whole / "trajectories" / name)) << name;
   EXPECT_EQ(test::report_data(whole / "report.html")["frames"],
             test::report_data(killed / "report.html")["frames"]);
   EXPECT_FALSE(fs::exists(killed / "partial"));

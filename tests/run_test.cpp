@@ -17,6 +17,7 @@
 #include <set>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "sim/world.hpp"
 #include "feed/feeder.hpp"
@@ -505,6 +506,78 @@ TEST(RunCompare, FlagsChangedCellsBeyondTolerance) {
   const output::CompareResult loose = output::compare_outputs(a, b, {1000, 1.0, 1000.0});
   EXPECT_TRUE(loose.agree()) << loose.differences.front();
   EXPECT_THROW(output::compare_outputs(a, a / "missing", {}), output::IoError);
+}
+
+// Two output folders whose tables are written here: `b` moves 1 mg of
+// copper from bin 0 to bin 1 (a quarter of the collector's 4 mg of copper)
+// and two FR-4 particles between the bins, and changes a grade by 0.03.
+void write_tidy_folders(const fs::path& a, const fs::path& b) {
+  const std::string crossings =
+      "id,time_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,along_m,diameter_m,mass_kg,material,charge_c,"
+      "collector,bin,product\n"
+      "0,0.1,0,0,0,0,-1,0,0.005,0.001,0.001,copper,0,tray,0,near\n";
+  const char* bins_a =
+      "collector,bin,from_m,to_m,material,count,mass_kg\n"
+      "tray,0,0,0.01,copper,3,0.003\n"
+      "tray,0,0,0.01,fr4,10,0.001\n"
+      "tray,1,0.01,0.02,copper,1,0.001\n"
+      "tray,1,0.01,0.02,fr4,10,0.001\n";
+  const char* bins_b =
+      "collector,bin,from_m,to_m,material,count,mass_kg\n"
+      "tray,0,0,0.01,copper,3,0.002\n"
+      "tray,0,0,0.01,fr4,8,0.001\n"
+      "tray,1,0.01,0.02,copper,1,0.002\n"
+      "tray,1,0.01,0.02,fr4,12,0.001\n";
+  const char* products_a =
+      "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery\n"
+      "tray,near,0,0.02,copper,4,0.004,0.5,1\n"
+      "tray,near,0,0.02,fr4,20,0.004,0.5,1\n";
+  const char* products_b =
+      "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery\n"
+      "tray,near,0,0.02,copper,4,0.004,0.53,1\n"
+      "tray,near,0,0.02,fr4,20,0.004,0.47,1\n";
+  for (const auto& [dir, bins, products] :
+       {std::tuple{a, bins_a, products_a}, std::tuple{b, bins_b, products_b}}) {
+    output::write_file_atomic(dir / "bins.csv", bins);
+    output::write_file_atomic(dir / "products.csv", products);
+    output::write_file_atomic(dir / "crossings.csv", crossings);
+  }
+}
+
+bool mentions(const output::CompareResult& r, const std::string& text) {
+  for (const std::string& d : r.differences)
+    if (d.find(text) != std::string::npos) return true;
+  return false;
+}
+
+// The tidy tables: a row is named by its collector, bin or product and
+// material; a mass tolerance is a fraction of that material's mass over the
+// collector's rows (copper: 4 mg in both bins), not of the whole table's.
+TEST(RunCompare, TidyTablesRowByRowWithMassScaledPerMaterial) {
+  const fs::path a = fresh_dir("tidy_a"), b = fresh_dir("tidy_b");
+  write_tidy_folders(a, b);
+  EXPECT_TRUE(output::compare_outputs(a, a, {}).agree());
+  const output::CompareResult strict = output::compare_outputs(a, b, {});
+  EXPECT_EQ(strict.differences.size(), 6u);  // 2 copper masses, 2 FR-4 counts, 2 grades
+  EXPECT_TRUE(mentions(strict, "bins.csv: tray bin 0 copper mass_kg: 0.003 vs 0.002"));
+  EXPECT_TRUE(mentions(strict, "bins.csv: tray bin 1 fr4 count: 10 vs 12"));
+  EXPECT_TRUE(mentions(strict, "products.csv: tray product near fr4 grade: 0.5 vs 0.47"));
+  // 1 mg is 0.25 of the copper (and 0.125 of all the mass): 0.2 is not enough.
+  const output::CompareResult masses = output::compare_outputs(a, b, {2, 0.2, 0.0});
+  EXPECT_EQ(masses.differences.size(), 2u);
+  EXPECT_TRUE(mentions(masses, "copper mass_kg"));
+  EXPECT_TRUE(output::compare_outputs(a, b, {2, 0.3, 0.0}).agree());
+  EXPECT_FALSE(output::compare_outputs(a, b, {1, 0.3, 0.0}).agree());
+
+  // Rows in another order are other rows.
+  output::write_file_atomic(b / "bins.csv",
+                            "collector,bin,from_m,to_m,material,count,mass_kg\n"
+                            "tray,0,0,0.01,fr4,10,0.001\n"
+                            "tray,0,0,0.01,copper,3,0.003\n"
+                            "tray,1,0.01,0.02,copper,1,0.001\n"
+                            "tray,1,0.01,0.02,fr4,10,0.001\n");
+  EXPECT_TRUE(mentions(output::compare_outputs(a, b, {1000, 1.0, 1000.0}),
+                       "bins.csv: tray bin 0 copper vs tray bin 0 fr4: rows differ"));
 }
 
 }  // namespace

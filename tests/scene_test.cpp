@@ -517,6 +517,31 @@ TEST(SceneOverrides, CreateNestedSection) {
   EXPECT_EQ(sim.model->gravity, Vec3(0, -9.81, 0));
 }
 
+// The reference separator, a newcomer's first run, writes frames to open in
+// ParaView: VTK, at least ten over the run, and coarse (no more than one
+// per 100 steps).
+TEST(SceneOverrides, ReferenceSeparatorWritesCoarseVtkFrames) {
+  const Simulation sim = load(kScenes + "ces_pcb.yaml");
+  const double every = sim.output.trajectories.every;
+  EXPECT_TRUE(sim.output.trajectories.vtk);
+  EXPECT_GE(sim.end_time / every, 10.0);
+  EXPECT_GE(every / sim.model->step, 100.0);
+}
+
+// A scene's trajectories switched off from the command line.
+TEST(SceneOverrides, TrajectoriesFormatNoneWritesNoFrames) {
+  TempDir dir;
+  const std::string path = dir.write(
+      "s.yaml", std::string(kMinimal) + "output: {trajectories: {every: 5 ms, format: both}}\n");
+  const Simulation on = load(path);
+  EXPECT_TRUE(on.output.trajectories.every > 0.0 && on.output.trajectories.csv);
+  const Simulation off = load(path, sets({{"output.trajectories.format", "none"}}));
+  EXPECT_EQ(off.output.trajectories.every, 0.0);
+  EXPECT_FALSE(off.output.trajectories.vtk || off.output.trajectories.csv);
+  EXPECT_EQ(std::count(off.active_components.begin(), off.active_components.end(), "trajectories"),
+            0);
+}
+
 // The contact model and its elastic constants, as `study --vary
 // contact.model=dvi,dem` sets them: global constants, a material's own wins.
 TEST(SceneOverrides, ContactModelAndDemConstants) {

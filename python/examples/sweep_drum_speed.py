@@ -14,6 +14,6 @@ for rpm in (30, 45, 60, 75):
     speed = {f"bodies.{b}.motion.rotation.speed": f"{rpm} rpm" for b in ("drum", "brush")}
     result = ces_sim.load(scene_file, set={**short, **speed}).run(f"out/sweep/{rpm}rpm")
     p = result.products
-    k = list(p["product"]).index("conductor")
-    grade, recovery = p["copper_kg"][k] / p["total_kg"][k], p["copper_kg"][k] / sum(p["copper_kg"])
-    print(f"{rpm:3d} rpm: copper grade {100 * grade:5.1f} %, recovery {100 * recovery:5.1f} %")
+    k = list(zip(p["product"], p["material"])).index(("conductor", "copper"))
+    print(f"{rpm:3d} rpm: copper grade {100 * p['grade'][k]:5.1f} %, "
+          f"recovery {100 * p['recovery'][k]:5.1f} %")

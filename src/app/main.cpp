@@ -20,7 +20,9 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <optional>
@@ -84,11 +86,25 @@ ces::scene::LoadOptions load_options(const Args& args) {
   return o;
 }
 
+// Seconds of wall time between progress lines when stderr is not a
+// terminal (a batch job's log): CES_PROGRESS_INTERVAL, else 10.
+double log_progress_interval() {
+  const char* text = std::getenv("CES_PROGRESS_INTERVAL");
+  if (text == nullptr) return 10.0;
+  char* end = nullptr;
+  const double seconds = std::strtod(text, &end);
+  if (end == text || *end != '\0' || !(seconds > 0.0) || !std::isfinite(seconds))
+    throw UsageError(std::string("CES_PROGRESS_INTERVAL=") + text +
+                     ": expected a number of seconds above 0");
+  return seconds;
+}
+
 ces::RunOptions run_options(const Args& args) {
   ces::RunOptions options;
   options.out_dir = args.out_dir;
   options.quiet = args.quiet;
   options.progress = !args.quiet && ::isatty(::fileno(stderr));
+  options.progress_interval = args.quiet ? 0.0 : log_progress_interval();
   return options;
 }
 

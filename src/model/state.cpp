@@ -4,7 +4,7 @@ namespace ces {
 
 void Particles::push(std::uint64_t new_id, int shape_index, double size_scale,
                      int material_index, double m, const Vec3& inertia, const Vec3& x,
-                     const Quat& q, const Vec3& v, const Vec3& w) {
+                     const Quat& q, const Vec3& v, const Vec3& w, double birth_time) {
   id.push_back(new_id);
   shape.push_back(shape_index);
   scale.push_back(size_scale);
@@ -20,6 +20,7 @@ void Particles::push(std::uint64_t new_id, int shape_index, double size_scale,
   torque.push_back(Vec3::Zero());
   charge.push_back(0.0);
   metal_charge.push_back(0.0);
+  birth.push_back(birth_time);
 }
 
 namespace {
@@ -128,7 +129,7 @@ std::uint64_t add_particle(const Model& model, State& state, int shape, double s
   const Vec3 inertia = mass * scale * scale * s.unit_inertia;
   const std::uint64_t id = state.next_id++;
   state.particles.push(id, shape, scale, material, mass, inertia, position, orientation,
-                       velocity, angular_velocity);
+                       velocity, angular_velocity, state.time);
   return id;
 }
 

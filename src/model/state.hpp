@@ -35,11 +35,14 @@ struct Particles {
   // C: a mixed particle's induced charge on its metal part (its insulating
   // part's is `charge`); 0 for everything else.
   std::vector<double> metal_charge;
+  // s: the time it was added at (a feed's particle: the start of the step
+  // that fed it).
+  std::vector<double> birth;
 
   std::size_t size() const { return id.size(); }
   void push(std::uint64_t new_id, int shape_index, double size_scale, int material_index,
             double m, const Vec3& inertia, const Vec3& x, const Quat& q, const Vec3& v,
-            const Vec3& w);
+            const Vec3& w, double birth_time);
   void swap_remove(std::size_t i);
   void reserve(std::size_t n);
   // New index j takes old index order[j]. The arrays swap with `scratch`'s,
@@ -52,7 +55,7 @@ inline constexpr auto kParticleArrays = std::tuple{
     &Particles::id,       &Particles::shape,    &Particles::scale,       &Particles::material,
     &Particles::position, &Particles::orientation, &Particles::velocity, &Particles::angular_velocity,
     &Particles::mass,     &Particles::inv_mass, &Particles::inv_inertia, &Particles::force,
-    &Particles::torque,   &Particles::charge,   &Particles::metal_charge};
+    &Particles::torque,   &Particles::charge,   &Particles::metal_charge, &Particles::birth};
 
 // Machine bodies: the Model's rigid bodies, in the same order.
 struct Bodies {
@@ -88,7 +91,7 @@ void load(ByteReader& in, State& state);
 void init_state(const Model& model, State& state);
 
 // Adds a particle with mass and inertia from its shape's volume and its
-// material's density; returns its id.
+// material's density, born at state.time; returns its id.
 std::uint64_t add_particle(const Model& model, State& state, int shape, double scale,
                            int material, const Vec3& position,
                            const Quat& orientation = Quat::Identity(),

@@ -30,27 +30,43 @@ double number(const std::string& s) {
   return v;
 }
 
-bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() &&
-         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
 std::string join(const std::vector<std::string>& v) {
   std::string s;
   for (const std::string& x : v) s += (s.empty() ? "" : ",") + x;
   return s;
 }
 
-// Mass tolerance scale per (collector, column): the larger column total of
-// the collector's rows in either folder.
-using Scales = std::map<std::pair<std::string, std::size_t>, double>;
+// The columns that name a row of bins.csv or products.csv: the collector,
+// the bin or product, the material.
+std::vector<std::size_t> key_columns(const Table& t) {
+  std::vector<std::size_t> keys;
+  for (std::size_t c = 0; c < t.header.size(); ++c)
+    if (c == 1 || t.header[c] == "collector" || t.header[c] == "material") keys.push_back(c);
+  return keys;
+}
 
-Scales mass_scales(const Table& a, const Table& b) {
+std::string row_name(const Table& t, const std::vector<std::string>& row,
+                     const std::vector<std::size_t>& keys) {
+  std::string name;
+  for (const std::size_t c : keys) {
+    if (!name.empty()) name += ' ';
+    if (c == 1) name.append(t.header[c]).append(" ");
+    name += row[c];
+  }
+  return name;
+}
+
+// Mass tolerance scale per collector and material: that material's mass
+// over the collector's rows, the larger of the two folders'.
+using Scales = std::map<std::pair<std::string, std::string>, double>;
+
+Scales mass_scales(const Table& a, const Table& b, const std::filesystem::path& file) {
+  const std::size_t collector = a.column("collector", file), material = a.column("material", file),
+                    mass = a.column("mass_kg", file);
   Scales sums[2];
   for (int side = 0; side < 2; ++side)
     for (const auto& row : (side == 0 ? a : b).rows)
-      for (std::size_t c = 0; c < row.size(); ++c)
-        if (ends_with(a.header[c], "_kg")) sums[side][{row[0], c}] += number(row[c]);
+      sums[side][{row[collector], row[material]}] += number(row[mass]);
   for (auto& [key, value] : sums[0]) value = std::max(value, sums[1][key]);
   return sums[0];
 }
@@ -75,45 +91,46 @@ std::string compare_cell(const std::string& where, const std::string& column, co
   const double x = number(a), y = number(b);
   if (column == "from_m" || column == "to_m")
     return check_cell(where, {column, x, y, 1e-9 * std::max(std::abs(x), std::abs(y))});
-  if (ends_with(column, "_count")) return check_cell(where, {column, x, y, double(o.tol_count)});
-  if (ends_with(column, "_kg")) return check_cell(where, {column, x, y, o.tol_mass * mass_scale});
+  if (column == "count") return check_cell(where, {column, x, y, double(o.tol_count)});
+  if (column == "mass_kg") return check_cell(where, {column, x, y, o.tol_mass * mass_scale});
   if (column == "grade" || column == "recovery")
     return check_cell(where, {column, x, y, o.tol_mass});
-  // A product whose two largest masses are close may swap its main material
-  // between runs; with a mass tolerance, the masses themselves decide.
-  if (column == "main_material" && o.tol_mass > 0.0) return {};
   return where + " " + column + ": " + a + " vs " + b;
 }
 
-// Cell-by-cell comparison of bins.csv or products.csv; the first two
-// columns name the row (collector, bin or product).
-void compare_tables(const std::string& file, const Table& a, const Table& b,
-                    const CompareOptions& o, CompareResult& r) {
+// Cell-by-cell comparison of bins.csv or products.csv, row by row; the
+// collector, bin or product and material name a row.
+void compare_tables(const std::filesystem::path& dir_a, const char* file, const Table& a,
+                    const Table& b, const CompareOptions& o, CompareResult& r) {
   if (a.header != b.header) {
-    r.differences.push_back(file + ": columns differ: " + join(a.header) + " vs " + join(b.header));
+    r.differences.push_back(std::string(file) + ": columns differ: " + join(a.header) + " vs " +
+                            join(b.header));
     return;
   }
   if (a.rows.size() != b.rows.size()) {
-    r.differences.push_back(file + ": " + std::to_string(a.rows.size()) + " rows vs " +
-                            std::to_string(b.rows.size()));
+    r.differences.push_back(std::string(file) + ": " + std::to_string(a.rows.size()) +
+                            " rows vs " + std::to_string(b.rows.size()));
     return;
   }
-  const Scales scales = mass_scales(a, b);
+  const std::vector<std::size_t> keys = key_columns(a);
+  const std::size_t collector = a.column("collector", dir_a / file),
+                    material = a.column("material", dir_a / file);
+  const Scales scales = mass_scales(a, b, dir_a / file);
   for (std::size_t i = 0; i < a.rows.size(); ++i) {
     const auto &ra = a.rows[i], &rb = b.rows[i];
-    const std::string where = file + ": " + ra[0] + " " + a.header[1] + " " + ra[1];
-    if (ra[0] != rb[0] || ra[1] != rb[1]) {
-      r.differences.push_back(where + " vs " + rb[0] + " " + rb[1] + ": rows differ");
+    const std::string where = std::string(file) + ": " + row_name(a, ra, keys);
+    if (row_name(a, ra, keys) != row_name(b, rb, keys)) {
+      r.differences.push_back(where + " vs " + row_name(b, rb, keys) + ": rows differ");
       continue;
     }
-    for (std::size_t c = 2; c < ra.size(); ++c) {
-      const auto scale = scales.find({ra[0], c});
-      std::string d = compare_cell(where, a.header[c], ra[c], rb[c],
-                                   scale == scales.end() ? 0.0 : scale->second, o);
+    const double scale = scales.at({ra[collector], ra[material]});
+    for (std::size_t c = 0; c < ra.size(); ++c) {
+      if (std::find(keys.begin(), keys.end(), c) != keys.end()) continue;
+      std::string d = compare_cell(where, a.header[c], ra[c], rb[c], scale, o);
       if (!d.empty()) r.differences.push_back(std::move(d));
     }
   }
-  r.notes.push_back(file + ": " + std::to_string(a.rows.size()) + " rows compared");
+  r.notes.push_back(std::string(file) + ": " + std::to_string(a.rows.size()) + " rows compared");
 }
 
 void compare_landings(const Landings& a, const Landings& b, const CompareOptions& o,
@@ -201,7 +218,7 @@ CompareResult compare_outputs(const std::filesystem::path& a, const std::filesys
                               const CompareOptions& options) {
   CompareResult r;
   for (const char* file : {"bins.csv", "products.csv"})
-    compare_tables(file, read_table(a / file), read_table(b / file), options, r);
+    compare_tables(a, file, read_table(a / file), read_table(b / file), options, r);
   compare_landings(read_landings(a / "crossings.csv"), read_landings(b / "crossings.csv"), options, r);
   return r;
 }

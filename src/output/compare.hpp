@@ -1,9 +1,9 @@
 // `ces-sim compare`: do two output folders agree within tolerances?
-//  - bins.csv and products.csv: cell by cell; counts within tol_count
-//    particles; masses within tol_mass times the larger total mass of that
-//    material in that collector (both folders); grade and recovery within
-//    tol_mass (absolute); a product's main material must be the same unless
-//    a mass tolerance is given (then its masses decide);
+//  - bins.csv and products.csv: row by row (collector, bin or product,
+//    material), cell by cell; counts within tol_count particles; masses
+//    within tol_mass times the larger total mass of that material in that
+//    collector (both folders); grade and recovery within tol_mass
+//    (absolute);
 //  - crossings.csv: per collector and material, the Wasserstein-1 distance of
 //    the mass-weighted landing positions along the collector axis within
 //    tol_w1_mm.

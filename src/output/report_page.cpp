@@ -28,7 +28,7 @@ const S = D.summary;
 const el = (tag, attrs, text) => { const e = document.createElement(tag);
   Object.assign(e, attrs || {}); if (text !== undefined) e.textContent = text; return e; };
 const fmt = (x, d) => (x === undefined || x === null || typeof x !== 'number') ? String(x) : x.toFixed(d);
-const pct = x => fmt(100 * x, 2) + ' %';
+const frac = x => fmt(x, 4);  // ratios as fractions, as in the files
 const grams = kg => fmt(1000 * kg, 3);
 function table(parent, head, rows) {
   const t = el('table'); const tr = el('tr');
@@ -50,7 +50,7 @@ function products() {
   S.collectors.forEach(c => {
     p.appendChild(el('h3', {}, c.name + ': ' + c.collected.count + ' particles, ' + grams(c.collected.mass_kg) + ' g'));
     table(p, ['product', 'mass g', 'main material', 'grade', 'recovery'],
-      c.products.map(x => [x.name, grams(x.mass_kg), x.main_material || '-', pct(x.grade), pct(x.recovery)]));
+      c.products.map(x => [x.name, grams(x.mass_kg), x.main_material || '-', frac(x.grade), frac(x.recovery)]));
   });
 }
 function balance() {
@@ -68,8 +68,8 @@ function solver() {
     ['method', s.method], ['iterations (mean / max)', fmt(s.iterations_mean, 1) + ' / ' + s.iterations_max],
     ['steps at the iteration cap', s.steps_at_iteration_cap + ' of ' + s.steps_solved],
     ['residual p95 (m/s)', s.residual_p95_mps.toExponential(2)],
-    ['worst overlap / radius', pct(s.max_penetration_relative)],
-    ['worst wall penetration / radius', pct(s.max_wall_penetration_relative)]]);
+    ['worst overlap / radius', frac(s.max_penetration_relative)],
+    ['worst wall penetration / radius', frac(s.max_wall_penetration_relative)]]);
   table(p, ['stage', 'wall s'], Object.entries(S.wall_time_s.stages).map(([k, v]) => [k, fmt(v, 3)]));
 }
 const palette = ['#c0392b', '#2471a3', '#229954', '#d68910', '#7d3c98', '#17a589', '#566573', '#a04000'];

@@ -203,9 +203,9 @@ void print_products(const RunRecord& r, std::FILE* out) {
       std::fprintf(out, "  %-24s empty\n", name.c_str());
       continue;
     }
-    std::fprintf(out, "  %-24s %-12s grade %5.1f %%  recovery %5.1f %%  %s\n", name.c_str(),
-                 materials[std::size_t(p.main_material)].name.c_str(), 100.0 * p.grade,
-                 100.0 * p.recovery, grams(p.total_kg).c_str());
+    std::fprintf(out, "  %-24s %-12s grade %.3f  recovery %.3f  %s\n", name.c_str(),
+                 materials[std::size_t(p.main_material)].name.c_str(), p.grade, p.recovery,
+                 grams(p.total_kg).c_str());
   }
 }
 
@@ -213,15 +213,15 @@ void print_indicators(const RunRecord& r, std::FILE* out) {
   const SolverSummary& s = r.solver;
   std::fprintf(out,
                "solver: iterations mean %.1f, max %d (%llu steps at the cap); residual "
-               "median %.2g, p95 %.2g m/s; max penetration %.3g mm (%.1f %% of radius)\n",
+               "median %.2g, p95 %.2g m/s; max penetration %.3g mm (%.3g of the radius)\n",
                s.iterations_mean, s.iterations_max, (unsigned long long)s.steps_at_cap,
                s.residual_median, s.residual_p95, s.max_penetration * 1e3,
-               100.0 * s.max_penetration_relative);
+               s.max_penetration_relative);
   const EnergyBalance& e = r.energy;
   if (e.not_passive.empty())
-    std::fprintf(out, "energy: dissipated %.3g J, largest gain without a source %.3g J (%.2g %% of "
+    std::fprintf(out, "energy: dissipated %.3g J, largest gain without a source %.3g J (%.2g of "
                       "the peak kinetic energy)\n",
-                 e.dissipated, e.max_gain, 100.0 * e.max_gain_relative());
+                 e.dissipated, e.max_gain, e.max_gain_relative());
 }
 
 // Three significant digits: enough for a warning.
@@ -234,7 +234,7 @@ std::string g3(double v) {
 }  // namespace
 
 std::string rayleigh_warning(double step, double rayleigh_time, std::uint64_t steps) {
-  return "DEM: the step (" + g3(step) + " s) is above 20 % of the Rayleigh time (" +
+  return "DEM: the step (" + g3(step) + " s) is above a fifth of the Rayleigh time (" +
          g3(rayleigh_time) + " s) of the smallest particle" +
          (steps > 0 ? " in " + std::to_string(steps) + " steps" : std::string()) +
          ": explicit contact forces are unreliable (overlaps, energy gain, blow-up); take a "
@@ -253,16 +253,15 @@ void add_warnings(RunRecord& r) {
          " solved steps met no finite solver residual (NaN or inf in the contact problem): "
          "those steps kept their warm start, apart from the safeguards on finite rows");
   if (s.max_penetration_relative > 0.1)
-    warn("particles overlapped by up to " +
-         std::to_string(int(100.0 * s.max_penetration_relative)) +
-         " % of their radius: consider a smaller time step or more iterations");
+    warn("particles overlapped by up to " + g3(s.max_penetration_relative) +
+         " of their radius: consider a smaller time step or more iterations");
   if (s.steps_above_rayleigh_limit > 0)
     warn(rayleigh_warning(r.sim->model->step, s.rayleigh_time_min, s.steps_above_rayleigh_limit));
   const EnergyBalance& e = r.energy;
   if (e.not_passive.empty() && e.max_gain_relative() > kEnergyGainWarning)
     warn("energy grew without a source by up to " + g3(e.max_gain) + " J (" +
-         g3(100.0 * e.max_gain_relative()) +
-         " % of the peak kinetic energy): consider a smaller time step or more iterations");
+         g3(e.max_gain_relative()) +
+         " of the peak kinetic energy): consider a smaller time step or more iterations");
   for (const FeedRecord& f : r.feeds) {
     if (f.deferrals > 0)
       warn("feed '" + f.name + "': " + std::to_string(f.deferrals) +

@@ -28,18 +28,27 @@ ProductResult product_result(const Collection& c, int collector, int product,
   r.product = product;
   MassUnits total = 0, main = 0;
   for (const int m : materials) {
-    const MassUnits mass = t.products[base + std::size_t(m)].mass;
-    r.kg.push_back(to_kg(mass));
-    total += mass;
-    if (mass > main) {  // ties keep the first (lower index) material
-      main = mass;
+    const Tally& cell = t.products[base + std::size_t(m)];
+    total += cell.mass;
+    if (cell.mass > main) {  // ties keep the first (lower index) material
+      main = cell.mass;
       r.main_material = m;
     }
   }
   r.total_kg = to_kg(total);
-  if (r.main_material < 0) return r;
-  r.grade = double(main) / double(total);
-  r.recovery = double(main) / double(settled_mass(c, r.main_material));
+  for (const int m : materials) {
+    const Tally& cell = t.products[base + std::size_t(m)];
+    ProductShare& s = r.shares.emplace_back();
+    s.count = cell.count;
+    s.kg = cell.kg();
+    if (cell.mass == 0) continue;
+    s.grade = double(cell.mass) / double(total);
+    s.recovery = double(cell.mass) / double(settled_mass(c, m));
+    if (m == r.main_material) {
+      r.grade = s.grade;
+      r.recovery = s.recovery;
+    }
+  }
   return r;
 }
 
@@ -67,23 +76,20 @@ std::vector<ProductResult> product_results(const Simulation& sim, const Collecti
 
 std::string bins_csv(const Simulation& sim, const Collection& c,
                      const std::vector<int>& materials) {
-  std::string text = "collector,bin,from_m,to_m";
-  for (const int m : materials)
-    text += "," + material_name(sim, m) + "_count," + material_name(sim, m) + "_kg";
-  text += '\n';
+  std::string text = "collector,bin,from_m,to_m,material,count,mass_kg\n";
   CsvWriter row(text);
   for (std::size_t k = 0; k < sim.collectors.size(); ++k) {
     const Collector& col = sim.collectors[k];
     const CollectorTallies& t = c.collectors()[k];
     const double width = (col.to - col.from) / col.bins;
     for (int b = 0; b < col.bins; ++b) {
-      row << col.name << b << col.from + b * width
-          << (b + 1 == col.bins ? col.to : col.from + (b + 1) * width);
+      const double from = col.from + b * width;
+      const double to = b + 1 == col.bins ? col.to : col.from + (b + 1) * width;
       for (const int m : materials) {
         const Tally& cell = t.bins[std::size_t(b) * c.material_count() + std::size_t(m)];
-        row << cell.count << cell.kg();
+        row << col.name << b << from << to << material_name(sim, m) << cell.count << cell.kg();
+        row.end_row();
       }
-      row.end_row();
     }
   }
   return text;
@@ -91,18 +97,17 @@ std::string bins_csv(const Simulation& sim, const Collection& c,
 
 std::string products_csv(const Simulation& sim, const std::vector<ProductResult>& products,
                          const std::vector<int>& materials) {
-  std::string text = "collector,product,from_m,to_m";
-  for (const int m : materials) text += "," + material_name(sim, m) + "_kg";
-  text += ",total_kg,main_material,grade,recovery\n";
+  std::string text = "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery\n";
   CsvWriter row(text);
   for (const ProductResult& r : products) {
     const Collector& col = sim.collectors[std::size_t(r.collector)];
     const Product& p = col.products[std::size_t(r.product)];
-    row << col.name << p.name << p.from << p.to;
-    for (const double kg : r.kg) row << kg;
-    row << r.total_kg << (r.main_material < 0 ? std::string() : material_name(sim, r.main_material))
-        << r.grade << r.recovery;
-    row.end_row();
+    for (std::size_t m = 0; m < materials.size(); ++m) {
+      const ProductShare& s = r.shares[m];
+      row << col.name << p.name << p.from << p.to << material_name(sim, materials[m]) << s.count
+          << s.kg << s.grade << s.recovery;
+      row.end_row();
+    }
   }
   return text;
 }

@@ -2,12 +2,18 @@
 // lost.csv. Masses in kg, lengths in m, times in s, all with the fixed
 // number format of output/format.hpp.
 //
-// products.csv: per product, the mass of each material; its main material
-// (the largest mass); grade = main material mass / product mass; recovery =
-// main material mass in the product / that material's mass whose fate is
-// known (collected anywhere, or lost). Particles still in flight at the end
-// count in neither, so a run that ends early does not read as a poor recovery.
+// bins.csv and products.csv are tidy: one row per collector, bin (or
+// product) and reported material, the material a column of its own, so
+// their columns are the same for every scene.
+//
+// products.csv: per product and material, its count and mass; grade = its
+// mass / the product's mass; recovery = its mass in the product / that
+// material's mass whose fate is known (collected anywhere, or lost).
+// Particles still in flight at the end count in neither, so a run that
+// ends early does not read as a poor recovery. Grades and recoveries are
+// fractions (0.98, not 98 %), here and in every output.
 #pragma once
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -19,13 +25,21 @@ namespace ces::output {
 // The materials the tables report: those some feed uses, by Model index.
 std::vector<int> fed_materials(const Simulation& sim);
 
+// One material in one product.
+struct ProductShare {
+  std::uint64_t count = 0;
+  double kg = 0.0;
+  double grade = 0.0;     // its mass / the product's (0 when the product is empty)
+  double recovery = 0.0;  // its mass here / its mass collected or lost (0 when none)
+};
+
 struct ProductResult {
   int collector = 0;
   int product = 0;
-  std::vector<double> kg;  // per reported material
+  std::vector<ProductShare> shares;  // per reported material
   double total_kg = 0.0;
-  int main_material = -1;  // Model index; -1 for an empty product
-  double grade = 0.0;
+  int main_material = -1;  // Model index of the largest mass; -1 for an empty product
+  double grade = 0.0;      // the main material's
   double recovery = 0.0;
 };
 

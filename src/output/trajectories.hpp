@@ -1,9 +1,17 @@
 // Particle trajectories, one frame every `every` seconds of simulated time:
-//  - VTK XML PolyData, one trajectories/frame_NNNNNN.vtp per frame (points:
-//    particle centres; point data: id, diameter, material, charge, velocity;
-//    one vertex cell per point so ParaView draws them), indexed by
-//    trajectories.pvd, which is rewritten after every frame so it always
-//    lists every frame on disk;
+//  - VTK, indexed by trajectories.pvd (rewritten after every frame, so it
+//    always lists every frame on disk), each frame a multiblock of:
+//      particles  trajectories/frame_NNNNNN.vtp: a point and a vertex per
+//                 particle, with its id, size, material, shape,
+//                 orientation, velocity, spin, charge and birth time;
+//      spheres    trajectories/frame_NNNNNN_spheres.vtp (scenes with sphere
+//                 clusters): a point per sphere of every particle, with its
+//                 diameter, to draw clusters as their spheres;
+//      machine    trajectories/machine_static.vtp, written once: the bodies
+//                 that do not move and the electrodes; and
+//                 trajectories/frame_NNNNNN_machine.vtp: those that move,
+//                 at the frame's pose;
+//    binary, zlib-compressed (output/vtk_xml.hpp);
 //  - trajectories.csv, one row per particle per frame.
 // Particles appear in id order, so equal runs give equal files.
 #pragma once
@@ -14,6 +22,7 @@
 #include "common/serial.hpp"
 #include "model/state.hpp"
 #include "output/files.hpp"
+#include "output/surfaces.hpp"
 #include "spec/simulation.hpp"
 
 namespace ces::output {
@@ -38,9 +47,17 @@ class TrajectoryWriter {
 
  private:
   void sort_by_id(const Particles& p);
-  void write_vtp(const State& state);
+  void write_vtk(const State& state);
+  std::string particles_vtp(const State& state) const;
+  std::string spheres_vtp(const State& state) const;
+  std::string machine_vtp(const State& state, const std::vector<int>& bodies,
+                          bool electrodes) const;
   void write_pvd();
+  // The .vtp files of a frame, relative to trajectories/.
+  std::vector<std::string> frame_files(std::size_t frame) const;
   void append_csv(const State& state);
+  double diameter(const Particles& p, std::size_t i) const;
+  bool has_static_machine() const { return !static_bodies_.empty() || !sim_->electrodes.empty(); }
 
   std::filesystem::path dir_;
   const Simulation* sim_;
@@ -51,6 +68,10 @@ class TrajectoryWriter {
   AppendFile csv_;
   std::vector<std::size_t> order_;  // particle indices by id
   std::string text_;                // reused frame buffer
+  std::vector<std::string> material_names_, shape_names_, part_names_;
+  std::vector<int> static_bodies_, moving_bodies_;  // Model::bodies indices
+  bool clusters_ = false;         // some shape has more than one sphere
+  PlaneExtent plane_;
 };
 
 }  // namespace ces::output

@@ -710,6 +710,7 @@ class Compiler {
     else
       shape_sizes_.push_back(name == "sphere" ? 1.0 : equal_volume_diameter(shape.volume));
     model_->shapes.push_back(shape);
+    sim_.shape_names.push_back(name);
     return int(model_->shapes.size()) - 1;
   }
 
@@ -879,7 +880,8 @@ class Compiler {
     sim_.output.dir = out.at("dir").string();
     sim_.output.steps_csv = out.at("steps").boolean();
     sim_.output.distribution_svg = out.at("distribution").boolean();
-    if (const Node* t = out.find("trajectories")) {
+    const Node* t = out.find("trajectories");
+    if (t && t->at("format").string() != "none") {
       const std::string& kind = t->at("format").string();
       sim_.output.trajectories.every = t->at("every").number();
       sim_.output.trajectories.vtk = kind != "csv";

@@ -22,7 +22,8 @@ void clear_work(const fs::path& work) {
   std::vector<std::string> names = listed_files(work / "summary.json");
   for (const char* name : {"summary.json", "checkpoint.bin", "checkpoint.bin.tmp",
                            "scene.resolved.yaml", "steps.csv", "trajectories.csv",
-                           "trajectories.pvd", "field.csv", "field.svg"})
+                           "trajectories.pvd", "trajectories/machine_static.vtp", "field.csv",
+                           "field.svg"})
     names.emplace_back(name);
   for (const std::string& name : names) {
     if (!safe_relative(name)) continue;

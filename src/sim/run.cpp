@@ -65,10 +65,11 @@ class StopSignals {
   struct sigaction old_term_ = {};
 };
 
-// One progress line on stderr, redrawn at most five times a second.
+// Progress on stderr: on a terminal one line, redrawn at most five times a
+// second; in a log, a line every `interval` seconds of wall time.
 class Progress {
  public:
-  explicit Progress(bool enabled) : enabled_(enabled) {}
+  Progress(bool terminal, double interval) : terminal_(terminal), interval_(interval) {}
   ~Progress() {
     if (drawn_) std::fputs("\r\033[K", stderr);
   }
@@ -76,21 +77,27 @@ class Progress {
   Progress& operator=(const Progress&) = delete;
 
   void update(const World& world, double end_time, double wall) {
-    if (!enabled_ || wall - last_ < 0.2) return;
+    if (!due(wall)) return;
     last_ = wall;
-    drawn_ = true;
+    drawn_ = terminal_;
     const double done = world.time() / end_time;
     const double eta = done > 0 ? wall * (1.0 - done) / done : 0.0;
-    std::fprintf(
-        stderr, "\r\033[Kt %.4g / %.4g s  wall %.1f s  ETA %.0f s  particles %zu  contacts %zu",
-        world.time(), end_time, wall, eta, world.particles().size(), world.contacts().size());
+    std::fprintf(stderr, "%st %.4g / %.4g s  wall %.1f s  ETA %.0f s  particles %zu  contacts %zu%s",
+                 terminal_ ? "\r\033[K" : "progress: ", world.time(), end_time, wall, eta,
+                 world.particles().size(), world.contacts().size(), terminal_ ? "" : "\n");
     std::fflush(stderr);
   }
 
  private:
-  bool enabled_;
+  bool due(double wall) const {
+    if (terminal_) return wall - last_ >= 0.2;
+    return interval_ > 0.0 && wall >= last_ + interval_;
+  }
+
+  bool terminal_;
+  double interval_;
   bool drawn_ = false;
-  double last_ = -1.0;
+  double last_ = 0.0;  // wall time of the last line
 };
 
 // The outputs that watch the run as it goes; they only read the world.
@@ -276,7 +283,8 @@ RunResult Runner::run() {
 
 void Runner::step_to_end() {
   const auto steps = std::uint64_t(std::llround(sim_.end_time / sim_.model->step));
-  Progress progress(options_.progress && !options_.quiet);
+  Progress progress(options_.progress && !options_.quiet,
+                    options_.quiet ? 0.0 : options_.progress_interval);
   while (world_.step_count() < steps) {
     if (g_stop_signal != 0) {
       stop_signal_ = g_stop_signal;

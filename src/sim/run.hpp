@@ -23,7 +23,7 @@ struct RunProgress {
 
 struct RunOptions {
   std::string out_dir;   // overrides Simulation::output.dir when not empty
-  bool progress = false; // a progress line on stderr
+  bool progress = false; // a progress line on stderr, redrawn in place (a terminal)
   bool quiet = false;    // no end-of-run report on stdout
   // Called between steps once on_progress_every seconds of wall time have
   // passed since its last call, and after the last step. Returning true
@@ -32,6 +32,8 @@ struct RunOptions {
   std::function<bool(const RunProgress&)> on_progress = {};
   double on_progress_every = 1.0;
   int threads = 0;  // worker threads, as --threads; 0: the scene's (Model::threads)
+  // s of wall time: otherwise a progress line on stderr this often (a log); 0: none.
+  double progress_interval = 0.0;
 };
 
 struct RunResult {

@@ -63,6 +63,9 @@ struct Simulation {
   std::optional<fields::DragSpec> drag;
   std::optional<fields::ElectrostaticsSpec> electrostatics;
   std::vector<NamedElectrode> electrodes;  // empty without electrostatics
+  // Per Model::shapes entry, its name in the scene: sphere, flake, rod or a
+  // `shapes` entry (a flake of another aspect is another shape, also "flake").
+  std::vector<std::string> shape_names;
   OutputSettings output;
   std::vector<std::string> active_components;
 };

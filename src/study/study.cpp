@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -121,6 +122,29 @@ bool run_cases(const Options& o, const std::vector<Case>& cases) {
   return ok;
 }
 
+// Per collector and product: the grade and recovery of its main material,
+// the material with the largest mass (the first listed on a tie), as the
+// summary and the report give them.
+using ProductFigures = std::map<std::pair<std::string, std::string>, std::pair<double, double>>;
+
+ProductFigures main_material_figures(const fs::path& file) {
+  const output::Table t = output::read_table(file);
+  const std::size_t collector = t.column("collector", file), product = t.column("product", file),
+                    mass = t.column("mass_kg", file), grade = t.column("grade", file),
+                    recovery = t.column("recovery", file);
+  ProductFigures figures;
+  std::map<std::pair<std::string, std::string>, double> largest;
+  for (const auto& row : t.rows) {
+    const std::pair key{row[collector], row[product]};
+    const double kg = std::stod(row[mass]);
+    const auto it = largest.find(key);
+    if (it != largest.end() && kg <= it->second) continue;
+    largest[key] = kg;
+    figures[key] = {std::stod(row[grade]), std::stod(row[recovery])};
+  }
+  return figures;
+}
+
 // The study command's own arguments (after "study"), but for --case,
 // --jobs and --scheduler: what every case command and the final measuring
 // command share.
@@ -187,17 +211,6 @@ int write_slurm(const Options& o) {
               "  sbatch --dependency=afterok:$jid --wrap \"%s\"\n",
               script.c_str(), make_cases(o.axes).size(), script.c_str(), measure.c_str());
   return 0;
-}
-
-double max_abs_difference(const output::Table& a, const output::Table& b, const fs::path& file,
-                          const std::string& column) {
-  const std::size_t ca = a.column(column, file), cb = b.column(column, file);
-  double worst = 0.0;
-  for (const auto& ra : a.rows)
-    for (const auto& rb : b.rows)
-      if (ra[0] == rb[0] && ra[1] == rb[1])  // same collector and product
-        worst = std::max(worst, std::abs(std::stod(ra[ca]) - std::stod(rb[cb])));
-  return worst;
 }
 
 Row read_row(const Options& o, const Case& c, const fs::path& reference) {
@@ -417,10 +430,14 @@ Errors measure(const fs::path& run, const fs::path& reference) {
                          : 1e3 * output::wasserstein1(ia->second, ib->second);
     }
   for (const auto& [key, w1] : e.w1_mm) e.w1_max_mm = std::max(e.w1_max_mm, w1);
-  const fs::path pa = run / "products.csv";
-  const output::Table ta = output::read_table(pa), tb = output::read_table(reference / "products.csv");
-  e.grade = max_abs_difference(ta, tb, pa, "grade");
-  e.recovery = max_abs_difference(ta, tb, pa, "recovery");
+  const ProductFigures fa = main_material_figures(run / "products.csv"),
+                       fb = main_material_figures(reference / "products.csv");
+  for (const auto& [product, a] : fa) {
+    const auto b = fb.find(product);
+    if (b == fb.end()) continue;
+    e.grade = std::max(e.grade, std::abs(a.first - b->second.first));
+    e.recovery = std::max(e.recovery, std::abs(a.second - b->second.second));
+  }
   std::ifstream in(run / "summary.json");
   const auto j = nlohmann::json::parse(in, nullptr, false);
   e.balance_exact = !j.is_discarded() && j["balance"].value("exact", false);

@@ -77,7 +77,7 @@ std::size_t finest_case(const Options& o, const std::vector<Case>& cases);
 struct Errors {
   std::map<std::string, double> w1_mm;  // per "material at collector"; inf: collected in one only
   double w1_max_mm = 0.0;
-  double grade = 0.0, recovery = 0.0;   // max abs difference over products
+  double grade = 0.0, recovery = 0.0;   // max abs difference over products, of their main material
   bool balance_exact = false;           // this run's fed = collected + lost + active
 };
 // Throws output::IoError when a folder lacks a table.
