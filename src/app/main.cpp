@@ -1,7 +1,8 @@
 // ces-sim: the command line.
 //
-//   ces-sim SCENE [-o DIR] [--set key.path=value]... [--seed N] [--threads N] [--quiet]
-//   ces-sim validate SCENE [--set ...]
+//   ces-sim SCENE [-o DIR] [--set key.path=value]... [--seed N] [--threads N]
+//           [--include-path DIR]... [--quiet]
+//   ces-sim validate SCENE [--set ...] [--include-path DIR]...
 //   ces-sim schema
 //   ces-sim compare DIR_A DIR_B [--tol-count N] [--tol-mass F] [--tol-w1 MM]
 //   ces-sim study SCENE --vary key=v1,v2... [--reference DIR] [-o DIR] [--jobs N]
@@ -52,6 +53,7 @@ struct Args {
   std::string scene;
   std::string out_dir;
   std::vector<std::string> sets;
+  std::vector<std::string> include_paths;
   std::optional<std::uint64_t> seed;
   std::optional<int> threads;
   bool quiet = false;
@@ -64,6 +66,10 @@ void add_scene_options(CLI::App& app, Args& args) {
       ->type_name("K=V");
   app.add_option("--seed", args.seed, "Random seed (wins over the scene's)");
   app.add_option("--threads", args.threads, "Worker threads")->check(CLI::PositiveNumber);
+  app.add_option("--include-path", args.include_paths,
+                 "A folder includes may come from besides the scene's own (repeatable)")
+      ->type_name("DIR")
+      ->check(CLI::ExistingDirectory);
 }
 
 ces::scene::LoadOptions load_options(const Args& args) {
@@ -76,11 +82,22 @@ ces::scene::LoadOptions load_options(const Args& args) {
   }
   o.seed = args.seed;
   o.threads = args.threads;
+  o.include_paths = args.include_paths;
   return o;
 }
 
+// Loads the scene; its warnings go to stderr, one per line.
+ces::Simulation load_scene(const Args& args) {
+  std::vector<ces::scene::Diagnostic> warnings;
+  ces::scene::LoadOptions options = load_options(args);
+  options.warnings = &warnings;
+  ces::Simulation sim = ces::scene::load(args.scene, options);
+  for (const ces::scene::Diagnostic& w : warnings) std::fprintf(stderr, "%s\n", w.str().c_str());
+  return sim;
+}
+
 int run_scene(const Args& args) {
-  const ces::Simulation sim = ces::scene::load(args.scene, load_options(args));
+  const ces::Simulation sim = load_scene(args);
   ces::RunOptions options;
   options.out_dir = args.out_dir;
   options.quiet = args.quiet;
@@ -93,7 +110,7 @@ int run_scene(const Args& args) {
 }
 
 int validate(const Args& args) {
-  ces::scene::load(args.scene, load_options(args));
+  load_scene(args);
   std::printf("OK: %s\n", args.scene.c_str());
   return kSuccess;
 }
@@ -161,6 +178,7 @@ int study(const Args& args, StudyArgs& study) {
     ces::study::Options& o = study.options;
     o.scene = args.scene;
     o.base_sets = load_options(args).overrides;
+    o.include_paths = args.include_paths;
     o.seed = args.seed;
     o.threads = args.threads;
     o.only_case = study.only_case;

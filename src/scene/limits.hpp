@@ -1,0 +1,30 @@
+// The bounds a scene must keep, each refused with a diagnostic at the line
+// that breaks it. They hold hostile input (alias bombs, include chains,
+// deep nesting, runs that would never end) to bounded time and memory,
+// as parsers for untrusted text do, and sit far above any real scene.
+#pragma once
+#include <cstddef>
+#include <cstdint>
+
+namespace ces::scene::limits {
+
+// Bytes in one scene file or fragment.
+inline constexpr std::size_t kFileBytes = 1u << 20;
+// Fragments in one include chain, and files read in one load.
+inline constexpr int kIncludeDepth = 16;
+inline constexpr int kIncludeFiles = 64;
+// Levels of nested mappings and lists; segments of a --set key path.
+inline constexpr int kNesting = 32;
+// Values in one load, and bytes of their text (scalars, keys), counted
+// with YAML aliases expanded: each use of an alias counts its value again.
+inline constexpr std::size_t kValues = 200000;
+inline constexpr std::size_t kTextBytes = 16u << 20;
+// Keys in one mapping; characters in a key path (feeds[0].mix[1].size).
+inline constexpr std::size_t kKeys = 10000;
+inline constexpr std::size_t kPathBytes = 256;
+// Time steps in a run (time.end / time.step).
+inline constexpr double kSteps = 1e7;
+// Particles a run's feeds make, all feeds together (expected number).
+inline constexpr double kFedParticles = 1e7;
+
+}  // namespace ces::scene::limits
