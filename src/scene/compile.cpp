@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <iomanip>
 #include <limits>
 #include <map>
 #include <set>
@@ -11,6 +12,7 @@
 #include "feed/shapes.hpp"
 #include "scene/diagnostics.hpp"
 #include "scene/electrostatics.hpp"
+#include "scene/limits.hpp"
 #include "scene/schema.hpp"
 
 namespace ces::scene {
@@ -29,6 +31,14 @@ std::string format(double x) {
 }
 
 std::string metres(double x) { return format(x) + " m"; }
+
+// A count in full ("10000000", not "1e+07") while it is short enough.
+std::string whole(double x) {
+  if (!(x < 1e15)) return format(x);
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(0) << x;
+  return s.str();
+}
 
 // Names declared by one section, for duplicate checks and references.
 class NameTable {
@@ -119,7 +129,10 @@ class Compiler {
     read_joints();
     read_motors();
     read_domain();
+    check_bodies_in_domain();
     read_feeds();
+    check_feed_counts();
+    check_gravity();
     read_collectors();
     read_air();
     read_electrostatics();
@@ -142,6 +155,12 @@ class Compiler {
       diags_.error(time.at("step"), "step " + format(model_->step) +
                                         " s is longer than the run (end " + format(sim_.end_time) +
                                         " s), expected step <= end");
+    else if (!(sim_.end_time / model_->step <= limits::kSteps))
+      diags_.error(time.at("step"), "a step of " + format(model_->step) + " s makes " +
+                                        whole(sim_.end_time / model_->step) +
+                                        " steps to the end (" + format(sim_.end_time) +
+                                        " s), expected at most " + whole(limits::kSteps) +
+                                        " (a longer step or a shorter run)");
     read_solver(root_.at("solver"));
     const Node& contact = root_.at("contact");
     model_->contact.envelope_fraction = contact.at("envelope").number();
@@ -486,6 +505,66 @@ class Compiler {
     return std::nullopt;
   }
 
+  // A body that fills the same space all run: static, or turning about an
+  // axis of symmetry (a drum on its own axis). Checks of where it is hold
+  // for the whole run only for these.
+  static bool fixed_in_space(const RigidBody& b) {
+    if (b.kind == BodyKind::Static) return true;
+    if (b.kind == BodyKind::Dynamic || b.motion.linear_velocity != Vec3::Zero()) return false;
+    if (b.motion.angular_speed == 0.0) return true;
+    const auto* c = std::get_if<geo::Cylinder>(&b.shape);
+    const Vec3 axis = b.pose.orientation * Vec3::UnitZ();
+    const Vec3 offset = b.pose.position - b.motion.center;
+    return c && axis.cross(b.motion.axis).norm() < 1e-9 && axis.cross(offset).norm() < 1e-9;
+  }
+
+  // The world box around a bounded body at t = 0.
+  static geo::Aabb world_bounds(const RigidBody& b) {
+    const geo::Aabb local = geo::local_bounds(b.shape);
+    geo::Aabb box = geo::Aabb::empty();
+    for (int k = 0; k < 8; ++k)
+      box.grow(b.pose.apply(Vec3((k & 1) ? local.max.x() : local.min.x(),
+                                 (k & 2) ? local.max.y() : local.min.y(),
+                                 (k & 4) ? local.max.z() : local.min.z())));
+    return box;
+  }
+
+  static Vec3 corner(const geo::Aabb& box, int k) {
+    return {(k & 1) ? box.max.x() : box.min.x(), (k & 2) ? box.max.y() : box.min.y(),
+            (k & 4) ? box.max.z() : box.min.z()};
+  }
+
+  // A body that stays outside the domain meets no particle: a splitter or a
+  // wall placed there is a mistake. So is a plane whose solid holds the
+  // whole domain.
+  void check_bodies_in_domain() {
+    if (!sim_.domain) return;
+    const Node* list = root_.find("bodies");
+    for (std::size_t i = 0; list && i < model_->bodies.size(); ++i) {
+      const RigidBody& b = model_->bodies[i];
+      if (!fixed_in_space(b)) continue;
+      const Node& node = list->items[i].at("pose");
+      if (const auto* plane = std::get_if<geo::Plane>(&b.shape)) {
+        int inside = 0;
+        for (int k = 0; k < 8; ++k) {
+          const Vec3 local = b.pose.inverse_apply(corner(*sim_.domain, k));
+          inside += plane->normal.dot(local) < plane->offset ? 1 : 0;
+        }
+        if (inside == 8)
+          diags_.error(node, "the solid side of plane '" + b.name +
+                                 "' holds the whole domain, expected a plane through domain.box");
+        else if (inside == 0)
+          diags_.error(node, "plane '" + b.name +
+                                 "' misses the domain, so no particle can reach it; expected a "
+                                 "plane through domain.box");
+      } else if (!world_bounds(b).overlaps(*sim_.domain)) {
+        diags_.error(node, "body '" + b.name +
+                               "' lies outside the domain, so no particle can reach it; "
+                               "expected a body inside domain.box");
+      }
+    }
+  }
+
   bool inside_domain(const geo::Aabb& b) const {
     return !sim_.domain || ((b.min.array() >= sim_.domain->min.array()).all() &&
                             (b.max.array() <= sim_.domain->max.array()).all());
@@ -515,8 +594,10 @@ class Compiler {
       if (const auto box = feed_region(region)) {
         feed.region = *box;
         check_fit(region, *box, across);
+        check_free(region, *box);
       }
       sim_.feeds.push_back(std::move(feed));
+      feed_rates_.push_back(&rate);
     }
   }
 
@@ -605,6 +686,75 @@ class Compiler {
                                " across, expected a region that holds them");
       return;
     }
+  }
+
+  // A region all inside one convex solid (a box, a solid cylinder, a
+  // plane's half-space) that stays put can place no particle. Convexity
+  // makes the corners enough.
+  void check_free(const Node& region, const geo::Aabb& box) {
+    for (const RigidBody& b : model_->bodies) {
+      const auto* c = std::get_if<geo::Cylinder>(&b.shape);
+      const bool convex = std::holds_alternative<geo::Plane>(b.shape) ||
+                          std::holds_alternative<geo::Box>(b.shape) ||
+                          (c && (c->thickness == 0.0 || c->thickness >= c->radius));
+      if (!convex || !fixed_in_space(b)) continue;
+      bool inside = true;
+      for (int k = 0; k < 8 && inside; ++k) {
+        hits_.clear();
+        geo::query(b.shape, b.pose.inverse_apply(corner(box, k)), 0.0, hits_);
+        inside = std::any_of(hits_.begin(), hits_.end(),
+                             [](const geo::SurfaceHit& h) { return h.distance < 0.0; });
+      }
+      if (inside)
+        return diags_.error(region, "the region lies inside body '" + b.name +
+                                        "', so no particle can be placed; expected a region in "
+                                        "free space");
+    }
+  }
+
+  // The particles the feeds make over the run, expected from the rates:
+  // all of them are held in memory at once if nothing leaves.
+  void check_feed_counts() {
+    double total = 0.0, largest = -1.0;
+    std::size_t at = 0;
+    for (std::size_t i = 0; i < sim_.feeds.size(); ++i) {
+      const double n = expected_particles(sim_.feeds[i]);
+      total += n;
+      if (!(n <= largest)) {
+        largest = n;
+        at = i;
+      }
+    }
+    if (total <= limits::kFedParticles) return;
+    diags_.error(*feed_rates_[at],
+                 "feed '" + sim_.feeds[at].name + "' makes about " + whole(largest) +
+                     " particles over the run (all feeds " + whole(total) + "), expected at most " +
+                     whole(limits::kFedParticles) + " in all (a lower rate or a shorter feed)");
+  }
+
+  double expected_particles(const Feed& f) const {
+    const double time = std::max(0.0, std::min(f.duration, sim_.end_time - f.start));
+    if (f.count_rate > 0.0) return f.count_rate * time;
+    double per_kg = 0.0;  // particles in a kilogram of the mix
+    for (const FeedComponent& c : f.mix) {
+      const double density = model_->materials.materials()[std::size_t(c.material)].density;
+      const double volume = model_->shapes[std::size_t(c.shape)].volume;
+      const double mean_mass = density * volume * c.size.mean_mass_per_particle_factor() /
+                               (c.shape_size * c.shape_size * c.shape_size);
+      per_kg += c.mass_fraction / mean_mass;
+    }
+    return f.mass_rate * time * per_kg;
+  }
+
+  // Without gravity, fed particles keep their feed velocity: with none,
+  // they hang where they appear. A scene may mean it (gravity: [0, 0, 0]
+  // says so); leaving gravity out is usually an omission.
+  void check_gravity() {
+    if (sim_.feeds.empty() || root_.find("gravity")) return;
+    diags_.warning(root_.at("feeds"),
+                   "particles are fed but the scene gives no gravity: they move only by their feed "
+                   "velocity, drag and fields; expected gravity (e.g. [0, -9.81 m/s^2, 0]), or "
+                   "gravity: [0, 0, 0] to say there is none");
   }
 
   // ---------------------------------------------------------------- particle shapes
@@ -784,7 +934,7 @@ class Compiler {
       collector.to = bins.at("to").number();
       collector.bins = bins.at("count").scalar.get<int>();
       if (check_bins(bins, collector)) read_products(c.find("products"), collector);
-      check_reachable(plane, collector);
+      check_reachable(plane, bins, collector);
       sim_.collectors.push_back(std::move(collector));
     }
   }
@@ -830,22 +980,35 @@ class Compiler {
 
   // With a domain, the plane must cut it: particles leave the domain first
   // otherwise.
-  void check_reachable(const Node& plane, const Collector& c) {
+  void check_reachable(const Node& plane, const Node& bins, const Collector& c) {
     if (!sim_.domain) return;
     double lo = kInf, hi = -kInf;
     for (int k = 0; k < 8; ++k) {
-      const Vec3 corner((k & 1) ? sim_.domain->max.x() : sim_.domain->min.x(),
-                        (k & 2) ? sim_.domain->max.y() : sim_.domain->min.y(),
-                        (k & 4) ? sim_.domain->max.z() : sim_.domain->min.z());
-      const double side = c.normal.dot(corner - c.point);
+      const double side = c.normal.dot(corner(*sim_.domain, k) - c.point);
       lo = std::min(lo, side);
       hi = std::max(hi, side);
     }
     if (lo >= 0.0 || hi <= 0.0)
-      diags_.error(
+      return diags_.error(
           plane,
           "the plane misses the domain, so no particle can reach it; expected a plane through "
           "domain.box");
+    if (c.from < c.to) check_bins_in_domain(bins, c);
+  }
+
+  // The domain's extent along the bin axis bounds where a particle can
+  // cross the plane.
+  void check_bins_in_domain(const Node& bins, const Collector& c) {
+    double lo = kInf, hi = -kInf;
+    for (int k = 0; k < 8; ++k) {
+      const double along = c.axis.dot(corner(*sim_.domain, k) - c.point);
+      lo = std::min(lo, along);
+      hi = std::max(hi, along);
+    }
+    if (c.to <= lo || c.from >= hi)
+      diags_.error(bins, "the bins [" + format(c.from) + ", " + format(c.to) +
+                             "] m lie outside the domain, which spans [" + format(lo) + ", " +
+                             format(hi) + "] m along the bin axis; expected bins inside it");
   }
 
   // ---------------------------------------------------------------- separator physics
@@ -980,7 +1143,9 @@ class Compiler {
   std::vector<bool> has_density_;
   // "shapes.<entry>" or "<built-in>@<aspect>" -> Model::shapes index; nullopt: reported
   std::map<std::string, std::optional<int>> shape_index_;
-  std::vector<double> shape_sizes_;  // per Model::shapes entry
+  std::vector<double> shape_sizes_;      // per Model::shapes entry
+  std::vector<const Node*> feed_rates_;  // per Simulation::feeds entry
+  std::vector<geo::SurfaceHit> hits_;
 };
 
 }  // namespace
