@@ -872,6 +872,10 @@ const Expected kExpectations[] = {
     {"plain_number_out_of_range.yaml", "plain_number_out_of_range.yaml", 3,
      "contact.envelope: 1e999 is out of range"},
     {"step_subnormal.yaml", "step_subnormal.yaml", 2, "time.step: '1e-320 s': number out of range"},
+    {"shape_too_many_spheres.yaml", "shape_too_many_spheres.yaml", 8,
+     "shapes.chain.spheres: a shape of 1001 spheres, expected at most 1000"},
+    {"too_many_shapes.yaml", "too_many_shapes.yaml", 27,
+     "feeds[0].mix[16].shape: a particle shape past the first 16"},
     {"too_many_steps.yaml", "too_many_steps.yaml", 3,
      "time.step: a step of 1e-06 s makes 100000000 steps to the end (100 s), expected at most "
      "10000000"},

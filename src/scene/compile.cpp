@@ -13,6 +13,7 @@
 #include "scene/diagnostics.hpp"
 #include "scene/electrostatics.hpp"
 #include "scene/limits.hpp"
+#include "scene/resolve.hpp"
 #include "scene/schema.hpp"
 
 namespace ces::scene {
@@ -307,6 +308,10 @@ class Compiler {
   std::optional<geo::Shape> mesh(const Node& s) {
     const Node& file = s.at("file");
     const fs::path path = scene_dir_ / file.string();
+    if (const std::string why = too_large(path, limits::kDataFileBytes); !why.empty()) {
+      diags_.error(file, "cannot load mesh " + path.string() + ": " + why);
+      return std::nullopt;
+    }
     try {
       return geo::load_mesh(path.string(), s.at("scale").number());
     } catch (const std::exception& e) {
@@ -775,6 +780,13 @@ class Compiler {
     if (!aspect) return std::nullopt;
     const std::string key = entry ? "shapes." + name : name + "@" + format(*aspect);
     if (const auto it = shape_index_.find(key); it != shape_index_.end()) return it->second;
+    if (shape_index_.size() == limits::kParticleShapes) {
+      diags_.error(ref ? *ref : component,
+                   "a particle shape past the first " + std::to_string(limits::kParticleShapes) +
+                       " (each shapes entry fed and each flake or rod aspect is one), expected "
+                       "fewer");
+      return shape_index_[key] = std::nullopt;
+    }
     const auto spheres = entry ? cluster_spheres(*entry) : builtin_spheres(name, *aspect);
     std::optional<int> index;
     if (spheres) index = add_shape(*spheres, entry, name);
@@ -830,20 +842,28 @@ class Compiler {
                                   : "neither spheres nor file given, expected one of them");
       return std::nullopt;
     }
+    feed::SphereList list;
     if (file) {
+      const fs::path path = scene_dir_ / file->string();
       try {
-        return feed::read_sphere_csv(scene_dir_ / file->string());
+        if (const std::string why = too_large(path, limits::kFileBytes); !why.empty())
+          throw std::runtime_error(path.string() + ": " + why);
+        list = feed::read_sphere_csv(path);
       } catch (const std::exception& e) {
         diags_.error(*file, std::string("cannot read the shape: ") + e.what());
         return std::nullopt;
       }
+    } else {
+      for (const Node& sphere : spheres->items) {
+        list.centers.push_back(vec3(sphere));
+        list.radii.push_back(sphere.items[3].number());
+      }
     }
-    feed::SphereList list;
-    for (const Node& sphere : spheres->items) {
-      list.centers.push_back(vec3(sphere));
-      list.radii.push_back(sphere.items[3].number());
-    }
-    return list;
+    if (list.centers.size() <= limits::kShapeSpheres) return list;
+    diags_.error(file ? *file : *spheres,
+                 "a shape of " + std::to_string(list.centers.size()) + " spheres, expected at most " +
+                     std::to_string(limits::kShapeSpheres));
+    return std::nullopt;
   }
 
   // Size at scale 1: a scene entry's `size` or its bounding diameter; for

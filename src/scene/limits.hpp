@@ -22,6 +22,14 @@ inline constexpr std::size_t kTextBytes = 16u << 20;
 // Keys in one mapping; characters in a key path (feeds[0].mix[1].size).
 inline constexpr std::size_t kKeys = 10000;
 inline constexpr std::size_t kPathBytes = 256;
+// Bytes of a mesh or field grid file; a sphere-list file is held to
+// kFileBytes.
+inline constexpr std::uintmax_t kDataFileBytes = 256u << 20;
+// Particle shapes a scene builds (each shapes entry fed, each built-in
+// flake or rod aspect), and spheres in one shape: building one integrates
+// its volume, up to about a second.
+inline constexpr std::size_t kParticleShapes = 16;
+inline constexpr std::size_t kShapeSpheres = 1000;
 // Time steps in a run (time.end / time.step).
 inline constexpr double kSteps = 1e7;
 // Particles a run's feeds make, all feeds together (expected number).

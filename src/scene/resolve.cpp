@@ -31,10 +31,8 @@ std::optional<std::string> read_file(const std::string& path, std::string& why) 
     why = fs::exists(path, ec) ? "not a regular file" : "no such file";
     return std::nullopt;
   }
-  if (const auto size = fs::file_size(path, ec); !ec && size > limits::kFileBytes) {
-    why = std::to_string(size) + " bytes, expected at most " + std::to_string(limits::kFileBytes);
-    return std::nullopt;
-  }
+  why = too_large(path, limits::kFileBytes);
+  if (!why.empty()) return std::nullopt;
   std::ifstream in(path, std::ios::binary);
   std::ostringstream text;
   text << in.rdbuf();
@@ -314,6 +312,13 @@ void apply_override(Node& root, const std::string& key_path, const std::string& 
     walked += (walked.empty() ? "" : ".") + s;
   }
   *n = std::move(*replacement);
+}
+
+std::string too_large(const std::filesystem::path& file, std::uintmax_t max_bytes) {
+  std::error_code ec;
+  const std::uintmax_t size = fs::file_size(file, ec);
+  if (ec || size <= max_bytes) return "";
+  return std::to_string(size) + " bytes, expected at most " + std::to_string(max_bytes);
 }
 
 void rebase_paths(Node& root, const std::string& scene_path) {

@@ -1,5 +1,7 @@
 // From files to one tree: includes, --set overrides, relative paths.
 #pragma once
+#include <cstdint>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -38,5 +40,9 @@ void apply_override(Node& root, const std::string& key_path, const std::string& 
 // resolved scene stands alone next to the scene file. --set paths are
 // relative to the working directory, like any command-line path.
 void rebase_paths(Node& root, const std::string& scene_path);
+
+// Why a data file a scene names (mesh, field grid, sphere list) is not
+// read: "N bytes, expected at most M" past `max_bytes`, else "".
+std::string too_large(const std::filesystem::path& file, std::uintmax_t max_bytes);
 
 }  // namespace ces::scene
