@@ -248,6 +248,19 @@ TEST(HostileDocuments, LongScalarsAreScannedWithoutRecursion) {
   expect_one(words, "seed: got 'bbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbb...', expected an integer");
 }
 
+// nlohmann's parser took a NUL for the end of the text, so what followed
+// reached the YAML parser unchecked: control characters are refused first.
+TEST(HostileDocuments, ControlCharactersAreRefusedWithTheirPlace) {
+  const std::string nul("{\"ces_sim\": 1}\n\0garbage", 23);
+  for (const char* name : {"nul.json", "nul.yaml"}) {
+    const auto errors = text_errors(nul, name);
+    expect_one(errors, std::string(name) + ":2:1: a control character (byte 0x00), expected "
+                                           "printable text");
+  }
+  expect_one(text_errors(std::string(kMinimal) + "name: \"a\x1b[2Jb\"\n", "escape.yaml"),
+             "escape.yaml:3:9: a control character (byte 0x1b)");
+}
+
 TEST(HostileDocuments, JsonNumbersOutOfRangeHaveALine) {
   expect_one(text_errors("{\"ces_sim\": 1,\n \"time\": {\"step\": 1e999, \"end\": 1}}", "n.json"),
              "n.json:2:");

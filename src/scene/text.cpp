@@ -45,6 +45,14 @@ std::optional<std::size_t> invalid_utf8(std::string_view text) {
   return std::nullopt;
 }
 
+std::optional<std::size_t> control_character(std::string_view text) {
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if ((c < 0x20 && c != '\t' && c != '\n' && c != '\r') || c == 0x7F) return i;
+  }
+  return std::nullopt;
+}
+
 std::string excerpt(std::string_view text, std::size_t max) {
   const std::size_t line_end = text.find_first_of("\r\n");
   std::size_t end = std::min({text.size(), line_end, max});

@@ -13,6 +13,11 @@ namespace ces::scene {
 // overlong forms, no surrogates, nothing above U+10FFFF); nullopt if all is.
 std::optional<std::size_t> invalid_utf8(std::string_view text);
 
+// The offset of the first control character other than tab, line feed and
+// carriage return (YAML allows no other; nlohmann's JSON parser takes a NUL
+// for the end of the text); nullopt if there is none.
+std::optional<std::size_t> control_character(std::string_view text);
+
 // The first line of `text`, cut at `max` bytes (on a character boundary)
 // with "..." appended when anything was left out.
 std::string excerpt(std::string_view text, std::size_t max = 40);

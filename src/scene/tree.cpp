@@ -326,11 +326,18 @@ std::optional<Node> parse(const std::string& text, const std::string& file, bool
                     std::to_string(limits::kFileBytes));
     return std::nullopt;
   }
-  if (const auto bad = invalid_utf8(text)) {
+  const auto bad_byte = [&](std::size_t at, const char* what, const char* expected) {
     char byte[8];
-    std::snprintf(byte, sizeof byte, "0x%02x", static_cast<unsigned char>(text[*bad]));
-    diags.error(mark_at(text, *bad, file), "",
-                std::string("invalid UTF-8 (byte ") + byte + "), expected UTF-8 text");
+    std::snprintf(byte, sizeof byte, "0x%02x", static_cast<unsigned char>(text[at]));
+    diags.error(mark_at(text, at, file), "",
+                std::string(what) + " (byte " + byte + "), expected " + expected);
+  };
+  if (const auto at = invalid_utf8(text)) {
+    bad_byte(*at, "invalid UTF-8", "UTF-8 text");
+    return std::nullopt;
+  }
+  if (const auto at = control_character(text)) {
+    bad_byte(*at, "a control character", "printable text");
     return std::nullopt;
   }
   if (json) {
