@@ -876,6 +876,14 @@ const Expected kExpectations[] = {
      "shapes.chain.spheres: a shape of 1001 spheres, expected at most 1000"},
     {"too_many_shapes.yaml", "too_many_shapes.yaml", 27,
      "feeds[0].mix[16].shape: a particle shape past the first 16"},
+    {"too_many_materials.yaml", "too_many_materials.yaml", 3,
+     "materials: 257 materials, expected at most 256"},
+    {"bin_tallies.yaml", "bin_tallies.yaml", 5,
+     "collectors: 100000 bins for 101 materials make 10100000 tallies, expected at most "
+     "10000000 (fewer bins)"},
+    {"trajectory_frames.yaml", "trajectory_frames.yaml", 4,
+     "output.trajectories.every: a frame every step (0.001 s) makes 1000000 trajectory frames, "
+     "expected at most 100000"},
     {"too_many_steps.yaml", "too_many_steps.yaml", 3,
      "time.step: a step of 1e-06 s makes 100000000 steps to the end (100 s), expected at most "
      "10000000"},

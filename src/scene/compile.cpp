@@ -135,6 +135,7 @@ class Compiler {
     check_feed_counts();
     check_gravity();
     read_collectors();
+    check_bin_tallies();
     read_air();
     read_electrostatics();
     read_output();
@@ -202,6 +203,14 @@ class Compiler {
   void read_materials() {
     std::vector<Material> list;
     if (const Node* materials = root_.find("materials")) {
+      // The table below has an entry per ordered pair: past the bound the
+      // load stops here, before anything refers to a material.
+      if (materials->entries.size() > limits::kMaterials) {
+        diags_.error(*materials, std::to_string(materials->entries.size()) +
+                                     " materials, expected at most " +
+                                     std::to_string(limits::kMaterials));
+        diags_.raise();
+      }
       for (const Entry& e : materials->entries) {
         const Node& m = e.value;
         materials_.declare(e.key, e.key_mark, m.path, int(list.size()), diags_);
@@ -959,6 +968,19 @@ class Compiler {
     }
   }
 
+  // Each bin keeps a tally per material.
+  void check_bin_tallies() {
+    double bins = 0.0;
+    for (const Collector& c : sim_.collectors) bins += c.bins;
+    const double tallies = bins * double(model_->materials.materials().size());
+    if (tallies > limits::kBinTallies)
+      diags_.error(root_.at("collectors"),
+                   whole(bins) + " bins for " +
+                       std::to_string(model_->materials.materials().size()) +
+                       " materials make " + whole(tallies) + " tallies, expected at most " +
+                       whole(limits::kBinTallies) + " (fewer bins)");
+  }
+
   bool check_bins(const Node& bins, const Collector& c) {
     if (std::abs(c.axis.dot(c.normal)) > 1.0 - 1e-9) {
       diags_.error(bins.at("axis"),
@@ -1057,6 +1079,19 @@ class Compiler {
 
   // ---------------------------------------------------------------- output
 
+  // A frame is written at most once a step, so a shorter interval counts as
+  // the step.
+  void check_frames(const Node& every_node, double every) {
+    const double interval = std::max(every, model_->step);
+    const double frames = sim_.end_time / interval;
+    if (frames <= limits::kFrames) return;
+    const std::string given = every < model_->step ? "a frame every step (" + format(interval) + " s)"
+                                                   : "a frame every " + format(interval) + " s";
+    diags_.error(every_node, given + " makes " + whole(frames) +
+                                 " trajectory frames, expected at most " +
+                                 whole(limits::kFrames) + " (a longer interval)");
+  }
+
   void read_output() {
     const Node& out = root_.at("output");
     sim_.output.dir = out.at("dir").string();
@@ -1065,6 +1100,7 @@ class Compiler {
     if (const Node* t = out.find("trajectories")) {
       const std::string& kind = t->at("format").string();
       sim_.output.trajectories.every = t->at("every").number();
+      check_frames(t->at("every"), sim_.output.trajectories.every);
       sim_.output.trajectories.vtk = kind != "csv";
       sim_.output.trajectories.csv = kind != "vtk";
     } else {

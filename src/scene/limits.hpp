@@ -30,8 +30,13 @@ inline constexpr std::uintmax_t kDataFileBytes = 256u << 20;
 // its volume, up to about a second.
 inline constexpr std::size_t kParticleShapes = 16;
 inline constexpr std::size_t kShapeSpheres = 1000;
-// Time steps in a run (time.end / time.step).
+// Materials (their pair table has one entry per ordered pair), and bin
+// tallies: bins of all collectors times materials, 32 bytes each.
+inline constexpr std::size_t kMaterials = 256;
+inline constexpr double kBinTallies = 1e7;
+// Time steps in a run (time.end / time.step), and trajectory frames.
 inline constexpr double kSteps = 1e7;
+inline constexpr double kFrames = 1e5;
 // Particles a run's feeds make, all feeds together (expected number).
 inline constexpr double kFedParticles = 1e7;
 
