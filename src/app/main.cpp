@@ -65,7 +65,8 @@ void add_scene_options(CLI::App& app, Args& args) {
   app.add_option("--set", args.sets, "Override a scene value before validation: key.path=value")
       ->type_name("K=V");
   app.add_option("--seed", args.seed, "Random seed (wins over the scene's)");
-  app.add_option("--threads", args.threads, "Worker threads")->check(CLI::PositiveNumber);
+  app.add_option("--threads", args.threads, "Worker threads (1 to 1024)")
+      ->check(CLI::Range(1, 1024));
   app.add_option("--include-path", args.include_paths,
                  "A folder includes may come from besides the scene's own (repeatable)")
       ->type_name("DIR")
