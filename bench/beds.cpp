@@ -11,7 +11,7 @@ namespace bench {
 using namespace ces;
 
 double BedRun::rate_per_core() const {
-  return contact_iterations / stages.solve / threads;
+  return contact_iterations / stages[ces::Stage::Solve] / threads;
 }
 
 std::shared_ptr<Model> bed_model(int iterations, int threads) {
@@ -46,10 +46,7 @@ void average(BedRun& run) {
   run.wall *= k;
   run.solver_iterations *= k;
   run.contact_iterations *= k;
-  StageTimes& t = run.stages;
-  for (double* x : {&t.hooks, &t.broadphase, &t.narrowphase, &t.forces, &t.assemble, &t.solve,
-                    &t.integrate})
-    *x *= k;
+  for (double& x : run.stages.seconds) x *= k;
 }
 
 }  // namespace

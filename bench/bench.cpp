@@ -1,4 +1,4 @@
-// ces_bench: what issue 7 asks the bench to measure, in one run.
+// ces_bench: the performance targets measured in one run.
 //
 //   ces_bench [--quick] [--out DIR] [--scene SCENE [--scene-set KEY=VALUE]...]
 //             [--no-scene] [--ces-sim PATH]
@@ -12,7 +12,7 @@
 // - grid against Bullet broadphase;
 // - with --scene, a scene end to end through ces-sim (wall time, stages).
 // Writes DIR/bench.csv (one row per figure) and DIR/report.md (the figures
-// against the issue's targets), and prints the report.
+// against the targets of bench/README.md), and prints the report.
 // --quick runs smaller sizes (under a minute) and, unless --scene-set is
 // given, the scene to 0.1 s only; its figures are for checking the bench.
 // --no-scene cancels an earlier --scene (bench/run passes one).
@@ -85,9 +85,10 @@ class Beds {
     const ces::StageTimes& t = b.stages;
     std::fprintf(stderr,
                  "%zu contacts, %d steps of %.3g s, %.1f M contact-it/s/core (ms: broad %.3g, "
-                 "narrow %.3g, assemble %.3g, solve %.3g, integrate %.3g)\n",
-                 b.contacts, b.steps, b.wall, b.rate_per_core() / 1e6, 1e3 * t.broadphase,
-                 1e3 * t.narrowphase, 1e3 * t.assemble, 1e3 * t.solve, 1e3 * t.integrate);
+                 "narrow %.3g, assemble %.3g, solve %.3g, safeguards %.3g, integrate %.3g)\n",
+                 b.contacts, b.steps, b.wall, b.rate_per_core() / 1e6, 1e3 * t[ces::Stage::Broadphase],
+                 1e3 * t[ces::Stage::Narrowphase], 1e3 * t[ces::Stage::Assemble], 1e3 * t[ces::Stage::Solve],
+                 1e3 * t[ces::Stage::Safeguards], 1e3 * t[ces::Stage::Integrate]);
     return b;
   }
   double work_;
@@ -101,10 +102,8 @@ BedRun median(std::vector<BedRun> runs) {
 }
 
 // The speed-up's rounds are spread over the whole bench, one between each of
-// its sections: a VM's second core can run short for a minute (both misses
-// of 2026-12-03 were three rounds taken back to back inside such a phase),
-// so rounds taken together sample one phase, and rounds spread out sample
-// the machine.
+// its sections: a VM's second core can run short for a minute, so rounds
+// taken together sample one phase, and rounds spread out sample the machine.
 constexpr int kSpeedupRounds = 5;
 
 class Speedup {

@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "dynamics/world.hpp"
+#include "sim/world.hpp"
 
 namespace bench {
 

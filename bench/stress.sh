@@ -1,5 +1,5 @@
 #!/bin/bash
-# Full versions of the stress scenes (scenes/stress/, issue 6): runs each as it
+# Full versions of the stress scenes (scenes/stress/): runs each as it
 # stands (tests/stress_test.cpp runs short versions) and prints one line per
 # run with the pass criteria's measures. Usage, from the repository root:
 #   bash bench/stress.sh [OUT_DIR] [SCENE_NAME...]        (default: bench/out/stress, all)

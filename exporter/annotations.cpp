@@ -109,6 +109,21 @@ std::optional<double> quantity(const Node& n, std::string_view kind, Diagnostics
   return std::nullopt;
 }
 
+// Quantities the exporter passes on where a bare SI number is a likely
+// slip: "voltage: -30" meant as kV is 30 V, "speed: 44.8" meant as rpm is
+// 428 rpm. They need their unit.
+void check_with_unit(const Node& n, std::string_view kind, Diagnostics& diags) {
+  if (!n.is_number()) {
+    (void)quantity(n, kind, diags);
+    return;
+  }
+  const scene::units::Kind* k = scene::units::find_kind(kind);
+  const std::string si(k->si);
+  diags.error(n, "got " + scene::describe(n) + ", a number without a unit, expected " +
+                     std::string(k->label) + " with its unit such as '" + std::string(k->example) +
+                     "' ('" + n.text + " " + si + "' if " + si + " are meant)");
+}
+
 std::optional<Vec3> direction(const Node& n, Diagnostics& diags) {
   const bool ok =
       n.is_sequence() && n.items.size() == 3 &&
@@ -152,6 +167,8 @@ void check_part_values(const Node& spec, Role role, Diagnostics& diags) {
     if (const Node* n = spec.find(key)) check_direction(*n, diags);
   for (const char* key : {"rpm", "friction", "restitution"})
     if (const Node* n = spec.find(key)) check_number(*n, diags);
+  if (const Node* n = spec.find("voltage")) check_with_unit(*n, "voltage", diags);
+  if (const Node* n = spec.find("speed")) check_with_unit(*n, "angular_speed", diags);
   for (const char* key : {"feed", "collector"})
     if (const Node* n = spec.find(key)) expect_map(*n, "a mapping of scene keys", diags);
   if (const Node* n = spec.find("shape"))

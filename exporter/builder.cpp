@@ -30,6 +30,7 @@ double tidy(double v) {
   std::snprintf(s, sizeof s, "%.12g", v);
   return std::strtod(s, nullptr);
 }
+double micrometres(double v) { return tidy(std::round(v * 1e6) / 1e6); }
 json vec(const Vec3& v) { return json::array({tidy(v.x()), tidy(v.y()), tidy(v.z())}); }
 std::string degrees(double radians) { return json(tidy(radians * 180.0 / kPi)).dump() + " deg"; }
 
@@ -100,6 +101,7 @@ class Builder {
     add_includes();
     for (const Placed& p : m_.parts) add(p);
     add_electrostatics();
+    add_gravity();
     add_domain();
     merge(root_, user_keys());
     order_keys();
@@ -326,11 +328,19 @@ class Builder {
 
   // ------------------------------------------------------------ electrostatics
 
+  // Its entry waits for the drum's frame check (add_electrostatics): an
+  // electrode off z is most often a whole machine drawn in another frame.
   void add_electrode(const Placed& p) {
+    electrode_parts_.push_back(&p);
+    if (p.rule->spec->find("material")) add_body(p);
+  }
+
+  Node electrode(const Placed& p, const Placed& drum) const {
     const Cylinder& c = *p.cylinder;
     if (std::abs(c.axis.z()) < 1.0 - 1e-9)
       throw InputError(where(p.rule->mark) + label(p) + " lies along " + vector_text(c.axis) +
-                       " (scene frame), expected it parallel to the drum's axis, z");
+                       " (scene frame), across " + label(drum) +
+                       ", whose axis is z; expected an electrode parallel to the drum");
     // Polar, as separator drawings give it: the distance from the drum axis
     // and the angle from +x.
     const double angle = std::atan2(c.center.y(), c.center.x());
@@ -338,8 +348,7 @@ class Builder {
     Node e = scene::from_json(json{{"name", p.name}, {"polar", polar}, {"radius", tidy(c.radius)}},
                               p.rule->mark);
     put(e, "voltage", *p.rule->spec->find("voltage"));
-    electrodes_.push_back(std::move(e));
-    if (p.rule->spec->find("material")) add_body(p);
+    return e;
   }
 
   const Placed* first(Role role) const {
@@ -348,37 +357,49 @@ class Builder {
     return nullptr;
   }
 
+  // The frame that puts a drum lying along `axis` (a CAD direction) on z
+  // with y up: the annotations' up, else z (y for a drum along z), the up
+  // of most CAD.
+  std::string frame_hint(const Vec3& axis) const {
+    const Vec3 up = a_.frame.given             ? a_.frame.up
+                    : std::abs(axis.z()) < 0.5 ? Vec3(Vec3::UnitZ())
+                                               : Vec3(Vec3::UnitY());
+    return "frame: {origin: drum, up: " + vector_text(up) +
+           "} in the annotations (up: the CAD direction that points up; the drum's axis "
+           "becomes z)";
+  }
+
   // The field models' frame: the drum's axis is z through the origin.
   void check_drum_frame(const Placed* drum) const {
     if (!drum)
       throw InputError("the machine has electrodes but no drum, expected a part with role drum");
-    const bool placed = drum->output == Output::Cylinder && drum->cylinder->center.norm() < 1e-9 &&
-                        std::abs(drum->cylinder->axis.z()) > 1.0 - 1e-9;
-    if (!placed)
-      throw InputError(
-          where(drum->rule->mark) + label(*drum) +
-          (drum->output == Output::Cylinder
-               ? " is centred at " + vector_text(drum->cylinder->center) + " along " +
-                     vector_text(drum->cylinder->axis)
-               : std::string(" is not a cylinder")) +
-          ", but the field models need the drum's axis on z through the origin; expected "
-          "a cylindrical drum, and frame: {origin: drum, up: <the CAD's up direction>} "
-          "in the annotations when the CAD puts it elsewhere");
+    if (drum->output != Output::Cylinder)
+      throw InputError(where(drum->rule->mark) + label(*drum) +
+                       " is not a cylinder, but the field models need a cylindrical drum; "
+                       "expected a drum the exporter recovers as a cylinder (see the warning)");
+    const Cylinder& c = *drum->cylinder;
+    if (c.center.norm() < 1e-9 && std::abs(c.axis.z()) > 1.0 - 1e-9) return;
+    const Vec3 cad_axis = m_.rotation.transpose() * c.axis;
+    throw InputError(where(drum->rule->mark) + label(*drum) + " is centred at " +
+                     vector_text(c.center) + " along " + vector_text(c.axis) +
+                     " (scene frame), but the field models need the drum's axis on z through "
+                     "the origin; expected " +
+                     frame_hint(cad_axis));
   }
 
   void add_electrostatics() {
     // Without electrode parts, the annotations' own electrostatics (or an
     // include's) may name a drum this export does not make.
     const Node* user = a_.root->find("electrostatics");
-    if (electrodes_.empty() && (!user || user->find("drum"))) return;
+    if (electrode_parts_.empty() && (!user || user->find("drum"))) return;
     const Placed* drum = first(Role::Drum);
     check_drum_frame(drum);
     Node es = make(Node::Kind::Map, drum->rule->mark);
     put(es, "drum", drum->name, drum->rule->mark);
     if (const Placed* brush = first(Role::Brush)) put(es, "brush", brush->name, brush->rule->mark);
-    if (!electrodes_.empty()) {
-      Node list = make(Node::Kind::Sequence, electrodes_.front().mark);
-      list.items = electrodes_;
+    if (!electrode_parts_.empty()) {
+      Node list = make(Node::Kind::Sequence, electrode_parts_.front()->rule->mark);
+      for (const Placed* p : electrode_parts_) list.items.push_back(electrode(*p, *drum));
       put(es, "electrodes", std::move(list));
     }
     put(root_, "electrostatics", std::move(es));
@@ -418,7 +439,9 @@ class Builder {
     section("feeds", Node::Kind::Sequence).items.push_back(std::move(feed));
   }
 
-  // Bins default to the plate's longer side.
+  // Bins default to the plate's longer side, their ends on a micrometre
+  // grid: from STL the plate's ends carry float noise (1e-8 m), and products
+  // given up to the ends would leave bins that end a hair short of them.
   void add_collector(const Placed& p) {
     const auto [k, sign] = facing(p, 1.0);
     const Bounds& b = p.quality.bounds;
@@ -432,24 +455,25 @@ class Builder {
                          {"plane", {{"point", vec(b.center())}, {"normal", vec(normal)}}},
                          {"bins",
                           {{"axis", vec(along)},
-                           {"from", tidy(b.min[j])},
-                           {"to", tidy(b.max[j])},
+                           {"from", micrometres(b.min[j])},
+                           {"to", micrometres(b.max[j])},
                            {"count", kDefaultBins}}}};
     Node c = scene::from_json(collector, p.rule->mark);
     if (const Node* more = p.rule->spec->find("collector")) merge(c, *more);
     section("collectors", Node::Kind::Sequence).items.push_back(std::move(c));
   }
 
-  // Everything the parts span, with a tenth of the machine's size around it,
-  // unless the annotations or their includes give a domain.
+  // Without gravity a feed hangs where it appears. It acts along -y of the
+  // scene, which `frame: up` makes the CAD's down.
+  void add_gravity() {
+    if (user_has("gravity")) return;
+    put(root_, "gravity", json::array({0, kGravity, 0}), root_mark_);
+  }
+
   void add_domain() {
     if (user_has("domain")) return;
-    Bounds all;
-    for (const Placed& p : m_.parts) all.add(p.quality.bounds);
-    const Vec3 margin = Vec3::Constant(0.1 * all.size().maxCoeff());
-    put(root_, "domain",
-        json{{"box", {{"min", vec(all.min - margin)}, {"max", vec(all.max + margin)}}}},
-        root_mark_);
+    const Bounds d = default_domain(m_);
+    put(root_, "domain", json{{"box", {{"min", vec(d.min)}, {"max", vec(d.max)}}}}, root_mark_);
   }
 
   const Machine& m_;
@@ -458,10 +482,19 @@ class Builder {
   std::vector<std::string>& warnings_;
   const Mark root_mark_;
   Node root_;
-  std::vector<Node> electrodes_;
+  std::vector<const Placed*> electrode_parts_;
 };
 
 }  // namespace
+
+Bounds default_domain(const Machine& machine) {
+  Bounds all;
+  for (const Placed& p : machine.parts) all.add(p.quality.bounds);
+  const Vec3 margin = Vec3::Constant(0.1 * all.size().maxCoeff());
+  all.min -= margin;
+  all.max += margin;
+  return all;
+}
 
 scene::Node build_scene(const Machine& machine, const Annotations& annotations,
                         const SceneSetup& setup, std::vector<std::string>& warnings) {

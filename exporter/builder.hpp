@@ -20,6 +20,13 @@ struct SceneSetup {
   std::set<std::string> included_keys;  // top-level keys the includes define
 };
 
+// Gravity, written along -y of the scene when the annotations give none.
+inline constexpr const char* kGravity = "-9.81 m/s^2";
+
+// The domain written when the annotations give none: everything the parts
+// span, with a tenth of the machine's size around it.
+Bounds default_domain(const Machine& machine);
+
 // Throws InputError when annotations and geometry disagree (a rotation axis
 // across the drum, an electrode not parallel to it, ...).
 scene::Node build_scene(const Machine& machine, const Annotations& annotations,

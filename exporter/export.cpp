@@ -235,7 +235,18 @@ json part_json(const Placed& p) {
     j["cylinder_fit"]["other_area_fraction"] = p.fit->other_fraction;
     j["cylinder_fit"]["used"] = p.cylinder_source == "fit";
   }
-  if (p.box) j["box"] = {{"center", vec_json(p.box->center)}, {"size", vec_json(p.box->size)}};
+  if (p.box_fit) {
+    const Box& b = p.box_fit->box;
+    const Eigen::AngleAxisd turn(b.frame);
+    j["box_fit"] = {
+        {"center", vec_json(b.center)},
+        {"size", vec_json(b.size)},
+        {"rotation", {{"axis", vec_json(turn.axis())}, {"angle_deg", turn.angle() * 180.0 / kPi}}},
+        {"volume_error", p.box_fit->volume_error},
+        {"face_error", p.box_fit->face_error},
+        {"other_area", p.box_fit->other_area},
+        {"used", p.box.has_value()}};
+  }
   if (!p.mesh_file.empty()) j["mesh_file"] = p.mesh_file;
   j["mesh"] = p.quality.to_json();
   return j;
@@ -251,43 +262,148 @@ json report_json(const ExportOptions& o, const UnitChoice& units, const Machine&
           {"ignored", m.ignored}, {"warnings", warnings}};
 }
 
-std::string summary(const Placed& p) {
-  if (p.cylinder) {
-    std::string s = "radius " + metres(p.cylinder->radius) + ", length " +
-                    metres(p.cylinder->length) + ", axis " + vector_text(p.cylinder->axis) +
-                    ", centre " + vector_text(p.cylinder->center);
-    if (p.cylinder_source == "step") return s + " (exact STEP surface)";
-    return s + " (fitted, RMS " + metres(p.fit->rms) + " = " +
-           percent(p.fit->rms / p.fit->cylinder.radius) + " of the radius)";
-  }
-  if (p.box) return "size " + vector_text(p.box->size) + ", centre " + vector_text(p.box->center);
-  if (!p.mesh_file.empty()) return p.mesh_file;
-  return "from " + vector_text(p.quality.bounds.min) + " to " + vector_text(p.quality.bounds.max);
+// ------------------------------------------------------------------ summary
+
+std::string cylinder_text(const Placed& p) {
+  const Cylinder& c = *p.cylinder;
+  std::string s = "radius " + metres(c.radius) + ", length " + metres(c.length) + ", axis " +
+                  vector_text(c.axis) + " through " + vector_text(c.center);
+  if (p.cylinder_source == "step") return s + "; exact STEP surface";
+  return s + "; fitted, RMS " + metres(p.fit->rms) + " = " + percent(p.fit->rms / c.radius) +
+         " of the radius";
 }
 
-void print_report(std::ostream& out, const ExportOptions& o, const UnitChoice& units,
-                  const Machine& m) {
-  out << "ces-export: " << o.input << " -> " << (fs::path(o.output) / "scene.yaml").string() << "\n"
-      << "CAD read in " << units.how << "\n\n";
-  char line[512];
+std::string box_text(const Placed& p) {
+  const Box& b = *p.box;
+  std::string s = metres(b.size.x()) + " x " + metres(b.size.y()) + " x " + metres(b.size.z()) +
+                  " at " + vector_text(b.center);
+  const Eigen::AngleAxisd turn(b.frame);
+  char angle[32];
+  std::snprintf(angle, sizeof angle, "%.4g deg", turn.angle() * 180.0 / kPi);
+  if (turn.angle() > 1e-12)
+    s += ", turned " + std::string(angle) + " about " + vector_text(turn.axis());
+  return s + "; off its box by " + percent(p.box_fit->volume_error) + " in volume, " +
+         percent(std::max(p.box_fit->face_error, p.box_fit->other_area)) + " in face area";
+}
+
+std::string part_text(const Placed& p) {
+  if (p.cylinder) return cylinder_text(p);
+  if (p.box) return box_text(p);
+  const MeshQuality& q = p.quality;
+  if (!p.mesh_file.empty())
+    return p.mesh_file + ": " + std::to_string(q.triangles) + " triangles, " +
+           std::to_string(q.open_edges) + " open and " + std::to_string(q.non_manifold_edges) +
+           " non-manifold edges, " + std::to_string(q.closed_pieces) + " of " +
+           std::to_string(q.pieces) + " pieces closed";
+  return "from " + vector_text(q.bounds.min) + " to " + vector_text(q.bounds.max);
+}
+
+std::string plural(Output o, int n) {
+  const std::string one = output_name(o);
+  if (n == 1) return one;
+  return o == Output::Box || o == Output::Mesh ? one + "es" : one + "s";
+}
+
+// "2 cylinders, 1 box, 1 feed outlet".
+std::string counts_text(const Machine& m) {
+  std::map<Output, int> count;
+  for (const Placed& p : m.parts) ++count[p.output];
+  std::string s;
+  for (const auto& [output, n] : count)
+    s += (s.empty() ? "" : ", ") + std::to_string(n) + " " + plural(output, n);
+  const std::size_t out = m.unassigned.size() + m.ignored.size();
+  return out ? s + "; " + std::to_string(out) + " left out" : s;
+}
+
+std::string frame_text(const Annotations& a, const Machine& m) {
+  if (!a.frame.given) return "no frame: the CAD's axes are the scene's (+y up)";
+  return "frame: the CAD's " + vector_text(m.rotation.row(1).transpose()) + " is up (+y), " +
+         vector_text(m.rotation.row(2).transpose()) + " is +z, the origin " +
+         (a.frame.origin_at_drum ? std::string("on the drum's axis")
+                                 : "at " + vector_text(a.frame.origin));
+}
+
+std::string rate_text(const Feed& f) {
+  char s[64];
+  if (f.mass_rate > 0.0)
+    std::snprintf(s, sizeof s, "%.4g g/s", 1e3 * f.mass_rate);
+  else
+    std::snprintf(s, sizeof s, "%.4g /s", f.count_rate);
+  std::string text = s;
+  std::snprintf(s, sizeof s, " from %.4g s", f.start);
+  text += s;
+  if (f.duration < 1e300) {
+    std::snprintf(s, sizeof s, " for %.4g s", f.duration);
+    text += s;
+  }
+  return text;
+}
+
+std::string collector_text(const Collector& c) {
+  std::string s = std::to_string(c.bins) + " bins along " + vector_text(c.axis) + " from " +
+                  metres(c.from) + " to " + metres(c.to) + " on the plane through " +
+                  vector_text(c.point) + " facing " + vector_text(c.normal);
+  for (std::size_t i = 0; i < c.products.size(); ++i)
+    s += (i ? ", " : "; products ") + c.products[i].name;
+  return s;
+}
+
+struct Summary {
+  const ExportOptions& options;
+  const Annotations& annotations;
+  const UnitChoice& units;
+  const Machine& machine;
+  const Simulation& sim;
+  const std::set<std::string>& made;  // top-level keys ces-export wrote itself
+  const std::vector<std::string>& include_paths;  // the folders its includes come from
+};
+
+void print_parts(std::ostream& out, const Machine& m) {
+  char line[160];
   for (const Placed& p : m.parts) {
-    std::snprintf(line, sizeof line, "  %-16s %-15s %-15s ", p.name.c_str(),
+    std::snprintf(line, sizeof line, "  %-14s %-15s %-15s ", p.name.c_str(),
                   role_name(p.rule->role), output_name(p.output));
-    out << line << summary(p) << "\n";
+    out << line << part_text(p) << "\n";
   }
-  out << "\nmesh quality (after welding, removing degenerate triangles and orienting):\n";
-  std::snprintf(line, sizeof line, "  %-16s %9s %8s %6s %12s %10s %7s %7s  %s\n", "part",
-                "triangles", "vertices", "open", "non-manifold", "degenerate", "flipped", "closed",
-                "bounding box (m)");
-  out << line;
-  for (const Placed& p : m.parts) {
-    const MeshQuality& q = p.quality;
-    const std::string closed = std::to_string(q.closed_pieces) + "/" + std::to_string(q.pieces);
-    std::snprintf(line, sizeof line, "  %-16s %9zu %8zu %6zu %12zu %10zu %7zu %7s  ",
-                  p.name.c_str(), q.triangles, q.vertices, q.open_edges, q.non_manifold_edges,
-                  q.degenerate_triangles, q.flipped_triangles, closed.c_str());
-    out << line << vector_text(q.bounds.min) << " .. " << vector_text(q.bounds.max) << "\n";
-  }
+  const auto list = [&](const std::vector<std::string>& names, const char* why) {
+    if (names.empty()) return;
+    out << "  left out (" << why << "): ";
+    for (std::size_t i = 0; i < names.size(); ++i) out << (i ? ", " : "") << names[i];
+    out << "\n";
+  };
+  list(m.ignored, "role: ignore");
+  list(m.unassigned, "no role");
+}
+
+// What the run will see: one screen, the details in export_report.json.
+void print_summary(std::ostream& out, const Summary& s) {
+  const fs::path scene = fs::path(s.options.output) / "scene.yaml";
+  out << "ces-export: " << s.options.input << " -> " << scene.string() << "\n"
+      << "CAD read in " << s.units.how << "; " << frame_text(s.annotations, s.machine) << "\n"
+      << "made: " << counts_text(s.machine) << "\n\n";
+  print_parts(out, s.machine);
+  const Vec3 up = s.machine.rotation.row(1).transpose();
+  out << "\ngravity:    " << vector_text(s.sim.model->gravity) << " m/s^2"
+      << (s.made.count("gravity") ? " (ces-export's: down is the CAD's " + vector_text(-up) + ")"
+                                  : std::string(" (from the annotations)"))
+      << "\n";
+  if (s.sim.domain)
+    out << "domain:     " << vector_text(s.sim.domain->min) << " to "
+        << vector_text(s.sim.domain->max) << " m"
+        << (s.made.count("domain") ? " (ces-export's: the parts and a tenth of the machine around)"
+                                   : " (from the annotations)")
+        << "\n";
+  for (const Feed& f : s.sim.feeds)
+    out << "feed:       " << f.name << ": " << rate_text(f) << " out of "
+        << vector_text(f.region.min) << " to " << vector_text(f.region.max) << "\n";
+  for (const Collector& c : s.sim.collectors)
+    out << "collector:  " << c.name << ": " << collector_text(c) << "\n";
+  if (s.sim.feeds.empty()) out << "feed:       none (no feed_outlet part, no feeds key)\n";
+  if (s.sim.collectors.empty())
+    out << "collector:  none (no collector_plane part, no collectors key)\n";
+  out << "next:       ces-sim " << scene.string();
+  for (const std::string& folder : s.include_paths) out << " --include-path " << folder;
+  out << "\n";
 }
 
 // ------------------------------------------------------------------ pipeline
@@ -295,6 +411,18 @@ void print_report(std::ostream& out, const ExportOptions& o, const UnitChoice& u
 std::string scene_header(const ExportOptions& o) {
   return "# Made by ces-export from " + o.input + " with " + o.annotations +
          ".\n# Lengths in metres. Edit the annotations and export again rather than this file.\n";
+}
+
+// The loader's findings about a domain ces-export made say what it is.
+void note_domain(std::vector<scene::Diagnostic>& found, const Bounds& domain) {
+  for (scene::Diagnostic& d : found)
+    if (d.message.find("domain") != std::string::npos)
+      d.message +=
+          " (the domain is ces-export's: the parts' bounding box and a tenth of the "
+          "machine around it, from " +
+          vector_text(domain.min) + " to " + vector_text(domain.max) +
+          " m; expected the part inside it, or domain: {box: {min: [x, y, z], max: [x, "
+          "y, z]}} in the annotations)";
 }
 
 void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
@@ -307,6 +435,9 @@ void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
   std::vector<std::string> warnings = m.warnings;
   const SceneSetup setup{fs::path(o.input).stem().string(), folder / "scene.yaml",
                          included_keys(a)};
+  std::set<std::string> made;
+  for (const char* key : {"gravity", "domain"})
+    if (!a.root->find(key) && !setup.included_keys.count(key)) made.insert(key);
   const Node root = build_scene(m, a, setup, warnings);
   scene::LoadOptions check;
   check.include_paths = include_folders(a, warnings);
@@ -322,14 +453,17 @@ void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
   const std::string written = (temp.path() / "scene.yaml").string();
   write_text(written, text);
   write_text(temp.path() / "export_report.json", report_json(o, units, m, warnings).dump(2) + "\n");
+  Simulation sim;
   try {
-    (void)scene::load(written, check);
+    sim = scene::load(written, check);
   } catch (const scene::SceneError& e) {
-    throw scene::SceneError(map_back(e.diagnostics(), written, text, root));
+    auto found = map_back(e.diagnostics(), written, text, root);
+    if (made.count("domain")) note_domain(found, default_domain(m));
+    throw scene::SceneError(found);
   }
   publish(temp.path(), folder);
   for (const std::string& w : warnings) err << "warning: " << w << "\n";
-  if (!o.quiet) print_report(out, o, units, m);
+  if (!o.quiet) print_summary(out, {o, a, units, m, sim, made, check.include_paths});
 }
 
 }  // namespace

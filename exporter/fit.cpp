@@ -1,7 +1,9 @@
 #include "fit.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -144,22 +146,89 @@ std::optional<CylinderFit> fit_about(const Mesh& m, const Vec3& guess, double ar
   return f;
 }
 
-// The three normal directions of a box, or nullopt.
-std::optional<std::vector<Vec3>> box_directions(const Mesh& m) {
-  constexpr double kParallel = 1.0 - 1e-9;
-  std::vector<Vec3> dirs;
+// Eigenvalues of the normals' scatter closer than this fraction of the
+// largest count as one: a square plate leaves a plane of eigenvectors, a
+// cube all of space, and facet normals pick the face directions there.
+constexpr double kSameEigenvalue = 1e-3;
+// A facet within 1 degree of a face direction lies on that face; float
+// STL coordinates tilt a 1 mm facet 2 m from the origin by 1e-4 rad.
+constexpr double kOnFaceCos = 0.99985;
+
+// The normal of the largest facet `keep` accepts; `fallback` for none.
+template <class Keep>
+Vec3 largest_facet_normal(const Mesh& m, Keep keep, const Vec3& fallback) {
+  double best = 0.0;
+  Vec3 found = fallback;
+  for (std::size_t t = 0; t < m.triangles.size(); ++t)
+    if (const Vec3 n = m.normal(t); keep(n) && m.area(t) > best) {
+      best = m.area(t);
+      found = n;
+    }
+  return found;
+}
+
+// The principal axes of the facet normals: for a box, its face directions
+// (the eigenvalues are twice the areas of the faces across them).
+Mat3 principal_axes(const Mesh& m) {
+  const auto all = [](const Vec3&) { return true; };
+  const Eigen::SelfAdjointEigenSolver<Mat3> eigen(normal_scatter(m, all));
+  const Vec3& l = eigen.eigenvalues();
+  const Mat3& v = eigen.eigenvectors();
+  const bool low_pair = l(1) - l(0) <= kSameEigenvalue * l(2);
+  const bool high_pair = l(2) - l(1) <= kSameEigenvalue * l(2);
+  if (!low_pair && !high_pair) return v;
+  // The axis whose eigenvalue stands apart, or, when none does, the largest
+  // facet's normal; then the largest facet across it (within 60 degrees of
+  // perpendicular) gives the second.
+  const Vec3 a = !low_pair    ? v.col(0)
+                 : !high_pair ? v.col(2)
+                              : largest_facet_normal(m, all, v.col(0));
+  const auto across = [&](const Vec3& n) { return std::abs(n.dot(a)) <= 0.5; };
+  const Vec3 n = largest_facet_normal(m, across, a.unitOrthogonal());
+  Mat3 axes;
+  axes.col(0) = a;
+  axes.col(1) = (n - n.dot(a) * a).normalized();
+  axes.col(2) = a.cross(axes.col(1));
+  return axes;
+}
+
+// Each axis made the area-weighted mean of the normals on its two faces,
+// then the nearest orthogonal frame (polar decomposition): a single facet's
+// float noise averages out over all of them.
+Mat3 refine_axes(const Mesh& m, const Mat3& axes) {
+  Mat3 sum = Mat3::Zero();
   for (std::size_t t = 0; t < m.triangles.size(); ++t) {
     const Vec3 n = m.normal(t);
-    const bool known = std::any_of(dirs.begin(), dirs.end(),
-                                   [&](const Vec3& d) { return std::abs(n.dot(d)) > kParallel; });
-    if (known) continue;
-    if (dirs.size() == 3) return std::nullopt;
-    dirs.push_back(n);
+    for (int k = 0; k < 3; ++k)
+      if (const double c = n.dot(axes.col(k)); std::abs(c) > kOnFaceCos)
+        sum.col(k) += m.area(t) * (c > 0.0 ? n : Vec3(-n));
   }
-  if (dirs.size() != 3) return std::nullopt;
-  for (int i = 0; i < 3; ++i)
-    if (std::abs(dirs[i].dot(dirs[(i + 1) % 3])) > 1e-9) return std::nullopt;
-  return dirs;
+  if ((sum.colwise().norm().array() == 0.0).any()) return axes;
+  const Eigen::JacobiSVD<Mat3> svd(sum, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  return svd.matrixU() * svd.matrixV().transpose();
+}
+
+// Volume enclosed by outward-wound closed pieces, from `c` (near the mesh,
+// so the terms do not cancel far from the origin).
+double enclosed_volume(const Mesh& m, const Vec3& c) {
+  double v = 0.0;
+  for (const auto& t : m.triangles)
+    v += (m.vertices[t[0]] - c).dot((m.vertices[t[1]] - c).cross(m.vertices[t[2]] - c));
+  return v / 6.0;
+}
+
+// The facet area on each of the six faces (-x, +x, -y, ... of `frame`) and
+// the area on none.
+std::array<double, 7> face_areas(const Mesh& m, const Mat3& frame) {
+  std::array<double, 7> a{};
+  for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+    const Vec3 n = frame.transpose() * m.normal(t);
+    int face = 6;
+    for (int k = 0; k < 3; ++k)
+      if (std::abs(n[k]) > kOnFaceCos) face = 2 * k + (n[k] > 0.0 ? 1 : 0);
+    a[std::size_t(face)] += m.area(t);
+  }
+  return a;
 }
 
 // Columns nearest to x, y and z, each pointing its way; the third is the
@@ -198,27 +267,29 @@ std::optional<CylinderFit> fit_cylinder(const Mesh& mesh) {
   return best;
 }
 
-std::optional<Box> match_box(const Mesh& mesh, double tolerance) {
-  const auto dirs = box_directions(mesh);
-  if (!dirs) return std::nullopt;
-  Box box;
-  box.frame = frame_near_world(*dirs);
+std::optional<BoxFit> fit_box(const Mesh& mesh) {
+  if (!(total_area(mesh) > 0.0)) return std::nullopt;
+  const Mat3 axes = refine_axes(mesh, principal_axes(mesh));
+  BoxFit f;
+  f.box.frame = frame_near_world({axes.col(0), axes.col(1), axes.col(2)});
   Bounds local;
-  for (const Vec3& p : mesh.vertices) local.add(box.frame.transpose() * p);
-  for (const Vec3& p : mesh.vertices) {
-    const Vec3 q = box.frame.transpose() * p;
-    const bool on_face = ((q - local.min).cwiseAbs().array() <= tolerance).any() ||
-                         ((q - local.max).cwiseAbs().array() <= tolerance).any();
-    if (!on_face) return std::nullopt;
+  for (const Vec3& p : mesh.vertices) local.add(f.box.frame.transpose() * p);
+  const Vec3 s = local.size();
+  f.box.size = s;
+  f.box.center = f.box.frame * local.center();
+  const Vec3 faces(s.y() * s.z(), s.z() * s.x(), s.x() * s.y());
+  if (!(faces.minCoeff() > 0.0)) {  // a flat sheet: no volume to measure against
+    f.volume_error = f.face_error = f.other_area = 1.0;
+    return f;
   }
-  box.size = local.size();
-  box.center = box.frame * local.center();
-  // Facets on the faces but not covering them (an open box, a plate with a
-  // slot) show as missing area.
-  const Vec3& s = box.size;
-  const double faces = 2.0 * (s.x() * s.y() + s.y() * s.z() + s.z() * s.x());
-  if (std::abs(total_area(mesh) - faces) > 1e-6 * faces) return std::nullopt;
-  return box;
+  const double volume = s.prod();
+  f.volume_error = std::abs(enclosed_volume(mesh, f.box.center) - volume) / volume;
+  const auto on = face_areas(mesh, f.box.frame);
+  for (int k = 0; k < 6; ++k)
+    f.face_error =
+        std::max(f.face_error, std::abs(on[std::size_t(k)] - faces[k / 2]) / faces[k / 2]);
+  f.other_area = on[6] / (2.0 * faces.sum());
+  return f;
 }
 
 }  // namespace ces::exporter

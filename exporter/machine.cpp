@@ -15,6 +15,9 @@ namespace {
 // m read as mm), not a real separator.
 constexpr double kLargestPart = 20.0;      // m
 constexpr double kSmallestMachine = 0.01;  // m
+// A separator's drum is centimetres to decimetres in radius: over a metre
+// is CAD in mm read as inches or centimetres.
+constexpr double kLargestDrumRadius = 1.0;  // m
 
 std::string list_names(const std::vector<std::string>& names) {
   std::string s;
@@ -132,16 +135,30 @@ void place_drum(Placed& p, double tolerance, std::vector<std::string>& warnings)
                      " has a joint, which needs a cylinder (a dynamic body cannot be a mesh)");
 }
 
-void place_splitter(Placed& p) {
-  if (wanted_shape(p, "box") == "box")
-    p.box = match_box(p.mesh, 1e-6 * std::max(p.quality.bounds.size().norm(), 1e-9));
-  if (p.box) {
-    p.output = Output::Box;
-  } else if (p.rule->spec->find("joint")) {
+std::string box_misfit(const BoxFit& f) {
+  const Vec3& s = f.box.size;
+  return "its oriented box (" + metres(s.x()) + " x " + metres(s.y()) + " x " + metres(s.z()) +
+         ") misses it by " + percent(f.volume_error) + " in volume and " + percent(f.face_error) +
+         " in a face's area, with " + percent(f.other_area) +
+         " of the area facing none of its faces (limit " + percent(kBoxTolerance) + ")";
+}
+
+void place_splitter(Placed& p, std::vector<std::string>& warnings) {
+  if (wanted_shape(p, "box") == "box") {
+    p.box_fit = fit_box(p.mesh);
+    if (p.box_fit && p.box_fit->within(kBoxTolerance)) {
+      p.box = p.box_fit->box;
+      p.output = Output::Box;
+      return;
+    }
+    if (p.box_fit)
+      warnings.push_back(label(p) + ": " + box_misfit(*p.box_fit) + ": kept as a mesh");
+  }
+  if (p.rule->spec->find("joint"))
     throw InputError(label(p) +
                      " has a joint, which needs a box-shaped plate (a dynamic body cannot "
-                     "be a mesh), but the part is not a box");
-  }
+                     "be a mesh), but the part is " +
+                     (p.box_fit ? "not a box: " + box_misfit(*p.box_fit) : "kept as a mesh"));
 }
 
 Placed place(const Part& part, const Rule& rule, const Annotations& a, Names& names,
@@ -161,7 +178,7 @@ Placed place(const Part& part, const Rule& rule, const Annotations& a, Names& na
       place_drum(p, a.fit_tolerance, warnings);
       break;
     case Role::Splitter:
-      place_splitter(p);
+      place_splitter(p, warnings);
       break;
     case Role::Electrode:
       if (!recover_cylinder(p, a.fit_tolerance, warnings))
@@ -199,6 +216,11 @@ void check_units(const Machine& m, const UnitChoice& units) {
                        " across, so the units look wrong: the CAD was read in " + units.how +
                        unit_suggestion(all.size().maxCoeff(), units));
   }
+  for (const Placed& p : m.parts)
+    if (p.rule->role == Role::Drum && p.cylinder && p.cylinder->radius > kLargestDrumRadius)
+      throw InputError(label(p) + " has a radius of " + metres(p.cylinder->radius) +
+                       ", so the units look wrong: the CAD was read in " + units.how +
+                       unit_suggestion(all.size().maxCoeff(), units));
   if (!all.empty() && all.size().maxCoeff() < kSmallestMachine)
     throw InputError("the machine is " + metres(all.size().maxCoeff()) +
                      " across, so the units look wrong: the CAD was read in " + units.how +

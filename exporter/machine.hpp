@@ -26,6 +26,7 @@ struct Placed {
   std::optional<Cylinder> cylinder;  // Output::Cylinder and Electrode
   std::string cylinder_source;       // "step" (exact faces) or "fit"
   std::optional<CylinderFit> fit;    // tried on meshes, reported even when not used
+  std::optional<BoxFit> box_fit;     // tried on splitters, reported even when not used
   std::optional<Box> box;            // Output::Box
   std::string mesh_file;             // Output::Mesh: "meshes/<name>.stl"
 };

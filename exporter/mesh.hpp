@@ -65,7 +65,7 @@ struct MeshQuality {
 // pieces outward (positive signed volume).
 MeshQuality clean(Mesh& mesh, double tolerance);
 
-// The default weld tolerance for a mesh: 1e-9 of its bounding-box diagonal,
+// The default weld tolerance for a mesh: 1e-6 of its bounding-box diagonal,
 // far below any CAD tolerance and far above rounding of coordinates.
 double weld_tolerance(const Mesh& mesh);
 

@@ -1,5 +1,5 @@
 // The step loop allocates nothing once its buffers have grown to the run's
-// peak (issue 7): every buffer of the pipeline is kept across steps.
+// peak: every buffer of the pipeline is kept across steps.
 // Counted by replacing the global allocation functions for this binary;
 // they count only while a test asks them to.
 #include <gtest/gtest.h>
@@ -9,7 +9,7 @@
 #include <cstdlib>
 #include <new>
 
-#include "dynamics/world.hpp"
+#include "sim/world.hpp"
 
 namespace {
 std::atomic<bool> counting{false};

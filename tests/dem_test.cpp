@@ -1,4 +1,4 @@
-// DEM baseline (Hertz-Mindlin with damping) against closed forms (issue 6).
+// DEM baseline (Hertz-Mindlin with damping) against closed forms.
 // Each test states its tolerance.
 #include <gtest/gtest.h>
 
@@ -6,7 +6,7 @@
 #include <cstring>
 #include <memory>
 
-#include "dynamics/world.hpp"
+#include "sim/world.hpp"
 #include "support.hpp"
 
 namespace ces {

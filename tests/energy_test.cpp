@@ -3,7 +3,7 @@
 
 #include <memory>
 
-#include "dynamics/world.hpp"
+#include "sim/world.hpp"
 #include "output/energy.hpp"
 #include "support.hpp"
 
@@ -21,18 +21,20 @@ std::shared_ptr<Model> sphere_model(Vec3 gravity) {
   return m;
 }
 
-// The ledger hooked into a World as the runner hooks it (no feeds or collectors).
+// The ledger observing a World's stages as the runner's does (no feeds or
+// collectors).
+struct Ledger : StepObserver {
+  output::EnergyLedger ledger;
+  Ledger(const Simulation& sim, const World& w) : ledger(sim, w.state()) {}
+  void after(Stage stage, const World& w) override { ledger.after(stage, w.state()); }
+};
+
 output::EnergyBalance run_ledger(const std::shared_ptr<Model>& m, World& w, int steps) {
   Simulation sim;
   sim.model = m;
-  output::EnergyLedger ledger(sim, w);
-  w.add_pre_step([&](World& x) { ledger.after_feeds(x); });
-  w.add_post_step([&](World& x) {
-    ledger.before_collectors(x);
-    ledger.after_collectors(x);
-  });
-  for (int i = 0; i < steps; ++i) w.step();
-  return ledger.balance();
+  Ledger observer(sim, w);
+  for (int i = 0; i < steps; ++i) w.step(&observer);
+  return observer.ledger.balance();
 }
 
 // Semi-implicit Euler loses exactly m g^2 h^2 / 2 per step in free fall

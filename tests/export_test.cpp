@@ -8,14 +8,17 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "fit.hpp"
 #include "mesh.hpp"
+#include "parts.hpp"
 #include "support.hpp"
 
 #ifdef CES_EXPORT_HAVE_OCCT
@@ -90,6 +93,8 @@ std::vector<Triangle> box(const Vec3& lo, const Vec3& hi) {
   for (const auto& k : f) t.push_back({v[k[0]], v[k[1]], v[k[2]]});
   return t;
 }
+
+std::vector<Triangle> centred_box(const Vec3& size) { return box(-0.5 * size, 0.5 * size); }
 
 // The test machine in mm: a drum along z (R 160, 300 long), a box hopper
 // above it and a plate splitter beside it.
@@ -209,6 +214,16 @@ YAML::Node body(const Exported& e, const std::string& name) {
 }
 
 Vec3 vec(const YAML::Node& n) { return {n[0].as<double>(), n[1].as<double>(), n[2].as<double>()}; }
+
+// The rotation a body's pose gives (identity without one).
+ces::Mat3 pose_rotation(const YAML::Node& body) {
+  const YAML::Node r = body["pose"]["rotation"];
+  if (!r) return ces::Mat3::Identity();
+  const std::string angle = r["angle"].as<std::string>();
+  EXPECT_TRUE(angle.ends_with(" deg")) << angle;
+  return Eigen::AngleAxisd(std::stod(angle) * kPi / 180, vec(r["axis"]).normalized())
+      .toRotationMatrix();
+}
 
 const nlohmann::json& report_part(const Exported& e, const std::string& name) {
   for (const auto& p : e.report["parts"])
@@ -341,6 +356,92 @@ TEST(ExportRoundTrip, ReferenceMachineRunsLikeCesPcb) {
   const auto cmp =
       ces::test::ces_sim("compare " + (work / "ref").string() + " " + (work / "exp").string());
   EXPECT_EQ(cmp.code, 0) << cmp.out << cmp.err;
+}
+// Without `frame`, the reference CAD (z up, the drum along -y) is refused
+// with the frame that fixes it.
+TEST(ExportBadInput, ReferenceStepWithoutFrame) {
+  const fs::path root = CES_SOURCE_DIR;
+  const fs::path work = fresh_dir("export_step_no_frame");
+  std::string annotations = read_text(root / "meshes/ces/annotations.yaml");
+  const std::size_t at = annotations.find("\nframe:");
+  ASSERT_NE(at, std::string::npos);
+  annotations.erase(at + 1, annotations.find('\n', at + 1) - at);
+  const Exported e = run(root / "meshes/ces/ces_machine.step", annotations, work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find("drum 'drum' is centred at [0.5, 0, 0.8] along [0, 1, 0] (scene frame)"),
+            std::string::npos)
+      << e.err;
+  EXPECT_NE(e.err.find("expected frame: {origin: drum, up: [0, 0, 1]} in the annotations"),
+            std::string::npos)
+      << e.err;
+  expect_nothing_written(e);
+}
+
+// A part's tessellation as a CAD program writes it to STL: float
+// coordinates in mm.
+void write_stl_mm(const fs::path& path, const Mesh& m) {
+  std::vector<Triangle> t;
+  for (const auto& tri : m.triangles)
+    t.push_back({1e3 * m.vertices[tri[0]], 1e3 * m.vertices[tri[1]], 1e3 * m.vertices[tri[2]]});
+  write_stl(path, t);
+}
+
+// The reference machine exported as STL (each part's tessellation, in mm,
+// where the assembly places it) gives the primitives its STEP gives: the
+// same kinds, cylinders fitted to 0.1 % of their radius, boxes (the second
+// splitter tilted by 27 degrees) to float precision.
+TEST(ExportRoundTrip, ReferenceMachineFromStlGivesTheStepPrimitives) {
+  const fs::path root = CES_SOURCE_DIR;
+  const fs::path work = fresh_dir("export_reference_stl");
+  std::string unit;
+  const std::vector<Part> parts =
+      read_step((root / "meshes/ces/ces_machine.step").string(), StepOptions{}, unit);
+  fs::create_directories(work / "stl");
+  for (const Part& p : parts) write_stl_mm(work / "stl" / (p.name + ".stl"), p.mesh);
+  const std::string annotations = read_text(root / "meshes/ces/annotations.yaml");
+  fs::create_directories(work / "a");
+  fs::create_directories(work / "b");
+  const Exported step = run(root / "meshes/ces/ces_machine.step", annotations, work / "a");
+  const Exported stl = run(work / "stl", annotations, work / "b");
+  ASSERT_EQ(step.code, 0) << step.err;
+  ASSERT_EQ(stl.code, 0) << stl.err;
+  EXPECT_EQ(stl.err, "");  // every part fitted, none left out
+  ASSERT_EQ(stl.scene["bodies"].size(), step.scene["bodies"].size());
+  for (const YAML::Node& a : step.scene["bodies"]) {
+    const YAML::Node b = body(stl, a["name"].as<std::string>());  // STL parts come sorted by name
+    SCOPED_TRACE(a["name"].as<std::string>());
+    EXPECT_LT((vec(b["pose"]["position"]) - vec(a["pose"]["position"])).norm(), 1e-5);
+    if (a["geometry"]["cylinder"]) {
+      ASSERT_TRUE(b["geometry"]["cylinder"]) << b;
+      const double r = a["geometry"]["cylinder"]["radius"].as<double>();
+      EXPECT_NEAR(b["geometry"]["cylinder"]["radius"].as<double>(), r, 1e-3 * r);
+      EXPECT_NEAR(b["geometry"]["cylinder"]["length"].as<double>(),
+                  a["geometry"]["cylinder"]["length"].as<double>(), 1e-6);
+      EXPECT_LT((vec(b["pose"]["axis"]) - vec(a["pose"]["axis"])).norm(), 1e-6);
+    } else {
+      ASSERT_TRUE(a["geometry"]["box"]) << a;
+      ASSERT_TRUE(b["geometry"]["box"]) << b;
+      EXPECT_LT((vec(b["geometry"]["box"]["size"]) - vec(a["geometry"]["box"]["size"])).norm(),
+                1e-6);
+      EXPECT_LT((pose_rotation(b) - pose_rotation(a)).norm(), 1e-6);
+    }
+  }
+  const YAML::Node ea = step.scene["electrostatics"]["electrodes"][0];
+  const YAML::Node eb = stl.scene["electrostatics"]["electrodes"][0];
+  EXPECT_NEAR(eb["polar"]["distance"].as<double>(), ea["polar"]["distance"].as<double>(), 1e-5);
+  EXPECT_NEAR(std::stod(eb["polar"]["angle"].as<std::string>()),
+              std::stod(ea["polar"]["angle"].as<std::string>()), 1e-3);
+  EXPECT_NEAR(eb["radius"].as<double>(), ea["radius"].as<double>(),
+              1e-3 * ea["radius"].as<double>());
+  const auto outlet = [](const Exported& e) { return e.scene["feeds"][0]["region"]["outlet"]; };
+  EXPECT_LT((vec(outlet(stl)["center"]) - vec(outlet(step)["center"])).norm(), 1e-6);
+  const auto plane = [](const Exported& e) { return e.scene["collectors"][0]["plane"]; };
+  EXPECT_LT((vec(plane(stl)["point"]) - vec(plane(step)["point"])).norm(), 1e-6);
+  // The fits' own measures, for the record.
+  for (const char* name : {"drum", "brush", "electrode"})
+    EXPECT_LT(report_part(stl, name)["cylinder_fit"]["rms_relative"].get<double>(), 0.005) << name;
+  for (const char* name : {"splitter_1", "splitter_2"})
+    EXPECT_LT(report_part(stl, name)["box_fit"]["volume_error"].get<double>(), 3e-5) << name;
 }
 #else
 TEST(ExportStep, WithoutOpenCascadeStepIsAClearError) {
@@ -480,6 +581,177 @@ TEST(ExportStl, ElectrodesAndTheDrumFrame) {
   expect_validates(e);
 }
 
+// Splitter plates tilted as drawn, in float STL coordinates: each a box body
+// of the plate's size, turned as the plate is (up to the box's symmetry).
+TEST(ExportStl, TiltedSplittersAreBoxes) {
+  const fs::path work = fresh_dir("export_stl_tilted");
+  write_stl_machine(work / "cad");
+  const std::vector<double> tilts = {-20, 27, 60, 89};
+  const Vec3 size(4, 150, 300);
+  for (std::size_t i = 0; i < tilts.size(); ++i) {
+    const Eigen::AngleAxisd turn(tilts[i] * kPi / 180, Vec3::UnitZ());
+    std::vector<Triangle> t = centred_box(size);
+    for (Triangle& tri : t)
+      for (Vec3& v : tri) v = turn * v + Vec3(250.0 + 60 * double(i), -200, 0);
+    write_stl(work / "cad" / ("splitter_" + std::to_string(i) + ".stl"), t);
+  }
+  const Exported e = run(work / "cad", machine_annotations("[0, 0, -1]"), work);
+  ASSERT_EQ(e.code, 0) << e.err;
+  EXPECT_EQ(e.err.find("kept as a mesh"), std::string::npos) << e.err;
+  for (std::size_t i = 0; i < tilts.size(); ++i) {
+    SCOPED_TRACE(tilts[i]);
+    const YAML::Node b = body(e, "splitter_" + std::to_string(i));
+    ASSERT_TRUE(b["geometry"]["box"]) << b;
+    const Vec3 got = vec(b["geometry"]["box"]["size"]);
+    const ces::Mat3 frame = pose_rotation(b);
+    const ces::Mat3 r = Eigen::AngleAxisd(tilts[i] * kPi / 180, Vec3::UnitZ()).toRotationMatrix();
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Index j = 0;
+      (frame.transpose() * r.col(k)).cwiseAbs().maxCoeff(&j);
+      EXPECT_GT(std::abs(frame.col(j).dot(r.col(k))), 1.0 - 1e-9) << "edge " << k;
+      EXPECT_NEAR(got[j], 1e-3 * size[k], 1e-6) << "edge " << k;
+    }
+    EXPECT_LT((vec(b["pose"]["position"]) - Vec3(0.25 + 0.06 * double(i), -0.2, 0)).norm(), 1e-6);
+    EXPECT_TRUE(report_part(e, "splitter_" + std::to_string(i))["box_fit"]["used"].get<bool>());
+  }
+  expect_validates(e);
+}
+
+const char* kNoGravityKeys = R"(
+time: {step: 1 ms, end: 0.1 s}
+materials:
+  steel: {friction: 0.3}
+)";
+
+// Without gravity a feed hangs at its outlet: the exporter writes it along
+// -y of the scene, which the frame's up makes the CAD's down. Given in the
+// annotations, it is theirs alone (lists would otherwise join).
+TEST(ExportStl, GravityIsWrittenUnlessGiven) {
+  const fs::path work = fresh_dir("export_stl_gravity");
+  write_stl_machine(work / "cad");
+  const std::string parts =
+      "parts:\n"
+      "  drum: {role: drum, material: steel, speed: 44.8 rpm, rotation_axis: [0, 0, -1]}\n"
+      "  hopper: {role: hopper, material: steel}\n"
+      "  splitter: {role: splitter, material: steel}\n";
+  const Exported made = run(work / "cad", parts + kNoGravityKeys, work);
+  ASSERT_EQ(made.code, 0) << made.err;
+  ASSERT_EQ(made.scene["gravity"].size(), 3u);
+  EXPECT_EQ(made.scene["gravity"][0].as<double>(), 0.0);
+  EXPECT_EQ(made.scene["gravity"][1].as<std::string>(), "-9.81 m/s^2");
+  EXPECT_EQ(made.scene["gravity"][2].as<double>(), 0.0);
+  EXPECT_NE(made.out.find("gravity:    [0, -9.81, 0] m/s^2 (ces-export's: down is the CAD's "
+                          "[0, -1, 0])"),
+            std::string::npos)
+      << made.out;
+  // The CAD drawn z up: `frame: up` says so, and down is the CAD's -z.
+  const Exported up =
+      run(work / "cad", "frame: {up: [0, 0, 1], axis: [1, 0, 0]}\n" + parts + kNoGravityKeys, work);
+  ASSERT_EQ(up.code, 0) << up.err;
+  EXPECT_EQ(up.scene["gravity"][1].as<std::string>(), "-9.81 m/s^2");
+  EXPECT_NE(up.out.find("down is the CAD's [0, 0, -1]"), std::string::npos) << up.out;
+  const Exported given =
+      run(work / "cad", parts + kNoGravityKeys + "gravity: [0, 0, -9.81 m/s^2]\n", work);
+  ASSERT_EQ(given.code, 0) << given.err;
+  ASSERT_EQ(given.scene["gravity"].size(), 3u);
+  EXPECT_EQ(given.scene["gravity"][2].as<std::string>(), "-9.81 m/s^2");
+  EXPECT_NE(given.out.find("gravity:    [0, 0, -9.81] m/s^2 (from the annotations)"),
+            std::string::npos)
+      << given.out;
+}
+
+std::size_t line_count(const std::string& text) {
+  return std::size_t(std::count(text.begin(), text.end(), '\n'));
+}
+
+// What ces-export made, on one screen: parts by kind with their fits, the
+// domain, gravity, feeds and collectors, and the command to run it.
+TEST(ExportStl, SummaryOnOneScreen) {
+  const fs::path work = fresh_dir("export_stl_summary");
+  write_stl_machine(work / "cad");
+  write_stl(work / "cad" / "outlet.stl", box({-60, 180, -40}, {0, 182, 40}));
+  write_stl(work / "cad" / "floor.stl", box({-200, -250, -150}, {300, -248, 150}));
+  write_stl(work / "cad" / "bolt.stl", box({0, 0, 0}, {5, 5, 5}));
+  const Exported e =
+      run(work / "cad",
+          machine_annotations("[0, 0, -1]",
+                              "  outlet: {role: feed_outlet, feed: {rate: 5 g/s, duration: 0.1 s,\n"
+                              "           mix: [{material: grit, size: {constant: 1 mm}}]}}\n"
+                              "  floor: {role: collector_plane}\n"
+                              "  bolt: {role: ignore}\n") +
+              "  grit: {density: 2500 kg/m^3, friction: 0.5}\n",
+          work);
+  ASSERT_EQ(e.code, 0) << e.err;
+  EXPECT_LE(line_count(e.out), 24u) << e.out;
+  for (const char* line :
+       {"made: 1 cylinder, 1 box, 1 mesh, 1 feed outlet, 1 collector plane; 1 left out\n",
+        "fitted, RMS", "off its box by", "meshes/hopper.stl: 12 triangles, 0 open",
+        "left out (role: ignore): bolt\n",
+        "gravity:    [0, -9.81, 0] m/s^2 (from the annotations)\n",
+        "domain:     [-0.25, -0.3, -0.2] to [0.35, 0.25, 0.2] m (ces-export's",
+        "feed:       outlet: 5 g/s from 0 s for 0.1 s out of [-0.06, 0.181, -0.04] to [0, 0.181, "
+        "0.04]\n",
+        "collector:  floor: 50 bins along [1, 0, 0] from -0.2 m to 0.3 m on the plane through "
+        "[0.05, -0.249, 0] facing [0, 1, 0]\n",
+        "next:       ces-sim "})
+    EXPECT_NE(e.out.find(line), std::string::npos) << line << "\n" << e.out;
+}
+
+// --- the README's example --------------------------------------------------
+
+// Mass of `material` per product, from products.csv.
+std::map<std::string, double> product_masses(const fs::path& csv, const std::string& material) {
+  std::istringstream in(read_text(csv));
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::string> header;
+  for (std::istringstream h(line); std::getline(h, line, ',');) header.push_back(line);
+  const auto column = std::find(header.begin(), header.end(), material + "_kg") - header.begin();
+  std::map<std::string, double> mass;
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    for (std::istringstream c(line); std::getline(c, line, ',');) cells.push_back(line);
+    mass[cells.at(1)] = std::stod(cells.at(std::size_t(column)));
+  }
+  return mass;
+}
+
+// exporter/README.md's walk-through on meshes/example (STL in mm, z up, a
+// 96-facet drum, a plate tilted by -20 degrees, no gravity in the
+// annotations): every part fits, and a short run collects every particle
+// fed, metals beyond the splitter and insulators before it.
+TEST(ExportExample, TheReadmeMachineExportsAndSeparates) {
+  const fs::path root = CES_SOURCE_DIR;
+  const fs::path work = fresh_dir("export_example");
+  std::ostringstream out, err;
+  const int code = run_export(
+      {(root / "meshes/example").string(), (root / "meshes/example/annotations.yaml").string(),
+       (work / "example").string(), false},
+      out, err);
+  ASSERT_EQ(code, 0) << err.str();
+  EXPECT_EQ(err.str(), "");
+  EXPECT_LE(line_count(out.str()), 24u) << out.str();
+  const YAML::Node scene = YAML::LoadFile((work / "example/scene.yaml").string());
+  for (const auto& b : scene["bodies"]) {
+    const std::string name = b["name"].as<std::string>();
+    const char* kind = name == "drum" ? "cylinder" : name == "splitter" ? "box" : "mesh";
+    EXPECT_TRUE(b["geometry"][kind]) << b;
+  }
+  EXPECT_EQ(scene["gravity"][1].as<std::string>(), "-9.81 m/s^2");
+  const auto run = ces::test::ces_sim(
+      (work / "example/scene.yaml").string() + " -o " + (work / "run").string() +
+      " --quiet --threads 1 --set feeds.feed.duration=0.05s --set time.end=0.6s");
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto summary = nlohmann::json::parse(read_text(work / "run/summary.json"));
+  const auto& balance = summary["balance"];
+  EXPECT_GT(balance["fed"]["count"].get<int>(), 50);
+  EXPECT_EQ(balance["collected"]["count"], balance["fed"]["count"]);
+  const auto copper = product_masses(work / "run/products.csv", "copper");
+  const auto fr4 = product_masses(work / "run/products.csv", "fr4");
+  EXPECT_GT(copper.at("conductor"), 0.9 * (copper.at("conductor") + copper.at("nonconductor")));
+  EXPECT_GT(fr4.at("nonconductor"), 0.9 * (fr4.at("conductor") + fr4.at("nonconductor")));
+}
+
 // --- bad input -------------------------------------------------------------
 
 TEST(ExportBadInput, UnreadableMeshesAndMissingInput) {
@@ -537,6 +809,124 @@ TEST(ExportBadInput, UnitsThatLookWrong) {
   EXPECT_EQ(large.code, 2);
   EXPECT_NE(large.err.find("drum 'drum' is 320 m across"), std::string::npos) << large.err;
   EXPECT_NE(large.err.find("set units: mm"), std::string::npos) << large.err;
+}
+
+// `units: in` on CAD drawn in mm makes a drum 4 m in radius: named as the
+// unit slip it is, with the unit that fits.
+TEST(ExportBadInput, InchesOnAMillimetreModel) {
+  const fs::path work = fresh_dir("export_bad_inches");
+  write_stl_machine(work / "cad");
+  const Exported e = run(work / "cad", "units: in\n" + machine_annotations("[0, 0, 1]"), work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find("drum 'drum' has a radius of 4.064 m, so the units look wrong: the CAD "
+                       "was read in in (units in the annotations); if the CAD is in mm, set "
+                       "units: mm"),
+            std::string::npos)
+      << e.err;
+  expect_nothing_written(e);
+}
+
+// The CAD's drum along its y (z up): the field models need it on z, and the
+// message gives the frame that puts it there.
+TEST(ExportBadInput, MachineDrawnInAnotherFrame) {
+  const fs::path work = fresh_dir("export_bad_frame");
+  fs::create_directories(work / "cad");
+  const Eigen::AngleAxisd lay(kPi / 2, Vec3::UnitX());  // CAD z up: the drum along y
+  const auto laid = [&](std::vector<Triangle> t, const Vec3& at) {
+    for (Triangle& tri : t)
+      for (Vec3& v : tri) v = lay * v + at;
+    return t;
+  };
+  const double a = 30 * kPi / 180;
+  write_stl(work / "cad" / "drum.stl", laid(cylinder(160, 300, 256), Vec3(0, 0, 800)));
+  write_stl(work / "cad" / "electrode.stl",
+            laid(cylinder(19, 300, 128), Vec3(267 * std::cos(a), 0, 800 + 267 * std::sin(a))));
+  const std::string parts =
+      "parts:\n"
+      "  drum: {role: drum, material: steel, speed: 44.8 rpm, rotation_axis: [0, 1, 0]}\n"
+      "  electrode: {role: electrode, voltage: -35 kV}\n" +
+      std::string(kSceneKeys);
+  const Exported e = run(work / "cad", parts, work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find("annotations.yaml:2:3: drum 'drum' is centred at [0, 0, 0.8] along [0, 1, "
+                       "0] (scene frame), but the field models need the drum's axis on z through "
+                       "the origin; expected frame: {origin: drum, up: [0, 0, 1]} in the "
+                       "annotations"),
+            std::string::npos)
+      << e.err;
+  expect_nothing_written(e);
+  const Exported fixed = run(work / "cad", "frame: {origin: drum, up: [0, 0, 1]}\n" + parts, work);
+  ASSERT_EQ(fixed.code, 0) << fixed.err;
+  EXPECT_NEAR(fixed.scene["electrostatics"]["electrodes"][0]["polar"]["distance"].as<double>(),
+              0.267, 1e-6);
+}
+
+// A feed or a collector the exporter's own domain does not hold: the
+// message says what that domain is and how to give another.
+TEST(ExportBadInput, FeedOutsideTheDomainTheExporterMade) {
+  const fs::path work = fresh_dir("export_bad_domain");
+  write_stl_machine(work / "cad");
+  const Exported e =
+      run(work / "cad",
+          machine_annotations("[0, 0, -1]") + "  grit: {density: 2500 kg/m^3, friction: 0.5}\n" +
+              "feeds:\n"
+              "  - {name: extra, rate: 1 g/s, mix: [{material: grit, size: {constant: 1 mm}}],\n"
+              "     region: {box: {min: [0.5, 0.5, 0], max: [0.6, 0.6, 0.1]}}}\n"
+              "collectors:\n"
+              "  - {name: low, plane: {point: [0, -2, 0], normal: [0, 1, 0]},\n"
+              "     bins: {axis: [1, 0, 0], from: -0.1, to: 0.1, count: 10}}\n",
+          work);
+  EXPECT_EQ(e.code, 2);
+  const std::string domain =
+      "(the domain is ces-export's: the parts' bounding box and a tenth of the machine around "
+      "it, from [-0.196, -0.196, -0.186] to [0.196, 0.236, 0.186] m; expected the part inside "
+      "it, or domain: {box: {min: [x, y, z], max: [x, y, z]}} in the annotations)";
+  EXPECT_NE(e.err.find("annotations.yaml:13:"), std::string::npos) << e.err;  // the region
+  EXPECT_NE(e.err.find("the region reaches outside the domain"), std::string::npos) << e.err;
+  EXPECT_NE(e.err.find("the plane misses the domain"), std::string::npos) << e.err;
+  EXPECT_EQ(std::count(e.err.begin(), e.err.end(), '\n'), 3) << e.err;  // 2 + "nothing written"
+  std::size_t notes = 0;
+  for (std::size_t at = e.err.find(domain); at != std::string::npos;
+       at = e.err.find(domain, at + 1))
+    ++notes;
+  EXPECT_EQ(notes, 2u) << e.err;
+  expect_nothing_written(e);
+}
+
+// A voltage or a drum speed without a unit would be read in SI (volts,
+// rad/s): "-30" meant as kV, "44.8" meant as rpm. Refused, with the unit.
+TEST(ExportBadInput, VoltageAndSpeedWithoutUnit) {
+  const fs::path work = fresh_dir("export_bad_unitless");
+  write_stl_machine(work / "cad");
+  const Exported e = run(work / "cad",
+                         "parts:\n"
+                         "  drum: {role: drum, material: steel, speed: 44.8}\n"
+                         "  electrode: {role: electrode, voltage: -30000}\n" +
+                             std::string(kSceneKeys),
+                         work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find("annotations.yaml:2:46: parts.drum.speed: got 44.8, a number without a "
+                       "unit, expected an angular speed with its unit such as '44.8 rpm' ('44.8 "
+                       "rad/s' if rad/s are meant)"),
+            std::string::npos)
+      << e.err;
+  EXPECT_NE(e.err.find("annotations.yaml:3:41: parts.electrode.voltage: got -30000, a number "
+                       "without a unit, expected a voltage with its unit such as '-35 kV' "
+                       "('-30000 V' if V are meant)"),
+            std::string::npos)
+      << e.err;
+  expect_nothing_written(e);
+  const Exported wrong = run(work / "cad",
+                             "parts:\n"
+                             "  drum: {role: drum, material: steel, speed: 44.8 rpm}\n"
+                             "  electrode: {role: electrode, voltage: -30 mm}\n" +
+                                 std::string(kSceneKeys),
+                             work);
+  EXPECT_EQ(wrong.code, 2);
+  EXPECT_NE(wrong.err.find("parts.electrode.voltage: got '-30 mm', expected a voltage such as "
+                           "'-35 kV'"),
+            std::string::npos)
+      << wrong.err;
 }
 
 // Scene keys in the annotations are checked by the simulator's own loader;
@@ -606,23 +996,143 @@ TEST(ExportMesh, CountsOpenAndNonManifoldEdges) {
   EXPECT_EQ(clean(fin, 1e-9).non_manifold_edges, 1u);
 }
 
-TEST(ExportFit, RotatedBoxIsABoxAndAnOpenOneIsNot) {
-  std::vector<Triangle> t = box({-0.002, -0.075, -0.15}, {0.002, 0.075, 0.15});
-  const Eigen::AngleAxisd turn(27 * kPi / 180, Vec3::UnitZ());
+// A part as CAD exports it to STL: float coordinates in mm (here 700 mm
+// from the origin, where a float is off by up to 3e-5 mm), read as metres.
+Mesh stl_part(std::vector<Triangle> t, const Eigen::AngleAxisd& turn,
+              const Vec3& at = Vec3(737.7, 659.1, -120.0)) {
   for (Triangle& tri : t)
-    for (Vec3& v : tri) v = turn * v + Vec3(0.2377, -0.1409, 0);
+    for (Vec3& v : tri) v = 1e-3 * (turn * v + at).cast<float>().cast<double>();
   Mesh m = soup(t);
-  clean(m, 1e-12);
-  const auto b = match_box(m, 1e-9);
-  ASSERT_TRUE(b);
-  EXPECT_LT((b->size - Vec3(0.004, 0.15, 0.3)).norm(), 1e-12);
-  EXPECT_LT((b->center - Vec3(0.2377, -0.1409, 0)).norm(), 1e-12);
-  EXPECT_NEAR(Eigen::AngleAxisd(b->frame).angle(), 27 * kPi / 180, 1e-12);
-  t.pop_back();
-  t.pop_back();  // no left face
-  Mesh open = soup(t);
-  clean(open, 1e-12);
-  EXPECT_FALSE(match_box(open, 1e-9));
+  clean(m, weld_tolerance(m));
+  return m;
+}
+
+// The fitted box is the box of `size` (mm) turned by `turn` about `at`:
+// each of its edges along a column of the frame, with its length, to 1 um.
+void expect_box(const BoxFit& f, const Vec3& size, const Eigen::AngleAxisd& turn,
+                const Vec3& at = Vec3(737.7, 659.1, -120.0)) {
+  EXPECT_TRUE(f.within(kBoxTolerance))
+      << f.volume_error << " " << f.face_error << " " << f.other_area;
+  // Float coordinates, not the shape: up to 3e-5 mm on each side of a 3 mm
+  // plate is 2e-5 of its thickness.
+  EXPECT_LT(f.volume_error, 3e-5);
+  EXPECT_LT(f.face_error, 3e-5);
+  EXPECT_LT(f.other_area, 1e-12);
+  EXPECT_LT((f.box.center - 1e-3 * at).norm(), 1e-6);
+  EXPECT_NEAR(f.box.frame.determinant(), 1.0, 1e-12);
+  const ces::Mat3 r = turn.toRotationMatrix();
+  for (int k = 0; k < 3; ++k) {
+    Eigen::Index j = 0;
+    (f.box.frame.transpose() * r.col(k)).cwiseAbs().maxCoeff(&j);
+    EXPECT_GT(std::abs(f.box.frame.col(j).dot(r.col(k))), 1.0 - 1e-9) << "edge " << k;
+    EXPECT_NEAR(f.box.size[j], 1e-3 * size[k], 1e-6) << "edge " << k;
+  }
+}
+
+// The reference machine's second splitter is tilted 27 degrees; a user's
+// -20. Plates, a square plate (two faces alike: the normals' principal axes
+// leave a plane) and a cube (all alike) at many tilts, about z and about
+// oblique axes.
+TEST(ExportFit, BoxesAtAnyTiltAreBoxes) {
+  const std::vector<Vec3> sizes = {{4, 150, 300}, {3, 120, 100}, {4, 150, 150}, {50, 50, 50}};
+  const std::vector<Eigen::AngleAxisd> turns = {{0.0, Vec3::UnitZ()},
+                                                {-20 * kPi / 180, Vec3::UnitZ()},
+                                                {27 * kPi / 180, Vec3::UnitZ()},
+                                                {45 * kPi / 180, Vec3::UnitZ()},
+                                                {60 * kPi / 180, Vec3::UnitZ()},
+                                                {89 * kPi / 180, Vec3::UnitZ()},
+                                                {135 * kPi / 180, Vec3::UnitZ()},
+                                                {-27 * kPi / 180, Vec3::UnitX()},
+                                                {40 * kPi / 180, Vec3(1, 1, 1).normalized()},
+                                                {1.0, Vec3(1, 2, 3).normalized()}};
+  for (const Vec3& size : sizes)
+    for (const Eigen::AngleAxisd& turn : turns) {
+      SCOPED_TRACE(testing::Message()
+                   << "size " << size.transpose() << ", " << turn.angle() * 180 / kPi
+                   << " deg about " << turn.axis().transpose());
+      const auto f = fit_box(stl_part(centred_box(size), turn));
+      ASSERT_TRUE(f);
+      expect_box(*f, size, turn);
+    }
+}
+
+// Four quads around a rectangular hole through a plate (x by y, thickness
+// t along z, centred on the origin): the ring's top and bottom, the outer
+// sides and the hole's walls.
+std::vector<Triangle> plate_with_hole(double x, double y, double t, double hx, double hy) {
+  std::vector<Triangle> out;
+  const auto quad = [&](const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+    out.push_back({a, b, c});
+    out.push_back({a, c, d});
+  };
+  const auto corner = [](double w, double h, int i, double z) {
+    return Vec3((i == 1 || i == 2 ? 0.5 : -0.5) * w, (i >= 2 ? 0.5 : -0.5) * h, z);
+  };
+  for (int i = 0; i < 4; ++i) {
+    const int j = (i + 1) % 4;
+    for (double z : {-0.5 * t, 0.5 * t})
+      quad(corner(x, y, i, z), corner(x, y, j, z), corner(hx, hy, j, z), corner(hx, hy, i, z));
+    for (const auto& [w, h] : {std::pair{x, y}, std::pair{hx, hy}})
+      quad(corner(w, h, i, -0.5 * t), corner(w, h, j, -0.5 * t), corner(w, h, j, 0.5 * t),
+           corner(w, h, i, 0.5 * t));
+  }
+  return out;
+}
+
+// A right triangle (legs a along x, b along y) drawn out along z.
+std::vector<Triangle> wedge(double a, double b, double length) {
+  const Vec3 p[3] = {{0, 0, 0}, {a, 0, 0}, {0, b, 0}};
+  const Vec3 l(0, 0, length);
+  std::vector<Triangle> t = {{p[0], p[2], p[1]}, {p[0] + l, p[1] + l, p[2] + l}};
+  for (int i = 0; i < 3; ++i) {
+    const Vec3 &u = p[i], &v = p[(i + 1) % 3];
+    t.push_back({u, v, v + l});
+    t.push_back({u, v + l, u + l});
+  }
+  return t;
+}
+
+// What is not a box is measured against its box: the errors are the
+// missing (or extra) volume and face area, exactly.
+TEST(ExportFit, WhatIsNotABoxMissesItsBox) {
+  const Eigen::AngleAxisd tilt(27 * kPi / 180, Vec3::UnitZ());
+  // A 100 x 10 mm slot through a 150 x 300 x 4 plate: 2.2 % of its volume
+  // gone, and its long walls add a third to the plate's 300 x 4 sides.
+  const auto slot = fit_box(stl_part(plate_with_hole(150, 300, 4, 10, 100), tilt));
+  ASSERT_TRUE(slot);
+  EXPECT_FALSE(slot->within(kBoxTolerance));
+  EXPECT_NEAR(slot->volume_error, 1000.0 / 45000.0, 1e-5);
+  EXPECT_NEAR(slot->face_error, 400.0 / 1200.0, 1e-5);
+  EXPECT_NEAR(slot->other_area, 0.0, 1e-12);
+  // A 2 x 2 mm hole: 0.009 % of the volume, within the tolerance, but its
+  // walls add 1.3 % to the plate's 150 x 4 sides.
+  const auto hole = fit_box(stl_part(plate_with_hole(150, 300, 4, 2, 2), tilt));
+  ASSERT_TRUE(hole);
+  EXPECT_NEAR(hole->volume_error, 4.0 / 45000.0, 1e-6);
+  EXPECT_NEAR(hole->face_error, 8.0 / 600.0, 1e-6);
+  EXPECT_FALSE(hole->within(kBoxTolerance));
+  // A wedge: any box around a triangular prism has at least twice its
+  // volume, and its slope faces none of the box's faces.
+  const auto half = fit_box(stl_part(wedge(40, 30, 100), tilt));
+  ASSERT_TRUE(half);
+  EXPECT_GE(half->volume_error, 0.5 - 1e-6);
+  EXPECT_GT(half->other_area, 0.1);
+  // An open box: one face has half its area (one triangle of two).
+  std::vector<Triangle> open = centred_box({4, 150, 300});
+  open.pop_back();
+  const auto lid = fit_box(stl_part(open, tilt));
+  ASSERT_TRUE(lid);
+  EXPECT_NEAR(lid->face_error, 0.5, 1e-5);
+  // Two plates side by side, 10 mm apart: a third of their box is empty.
+  std::vector<Triangle> two = box({0, 0, 0}, {4, 150, 300});
+  for (const Triangle& t : box({14, 0, 0}, {18, 150, 300})) two.push_back(t);
+  const auto pair = fit_box(stl_part(two, tilt));
+  ASSERT_TRUE(pair);
+  EXPECT_NEAR(pair->volume_error, 10.0 / 18.0, 1e-5);
+  // A drum.
+  const auto drum = fit_box(stl_part(cylinder(160, 300, 96), tilt));
+  ASSERT_TRUE(drum);
+  EXPECT_FALSE(drum->within(kBoxTolerance));
 }
 
 TEST(ExportFit, CylinderAlongAnyAxis) {

@@ -1,5 +1,5 @@
 // Electric field models, charging laws, forces and drag against the closed
-// forms and the derived regression values of PHYSICS.md §2–§3.
+// forms and the derived regression values of docs/physics.md §3 and §5.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -25,12 +25,12 @@ constexpr double kDeg = kPi / 180.0;
 constexpr double kKvPerCm = 1e5;  // V/m
 constexpr double kG = 9.81;
 
-// Reference machine of PHYSICS §1 / §2.1.
+// Reference machine of docs/physics.md §2 / §2.1.
 constexpr double kVoltage = -35e3;
 const Drum kDrum{0.16, 0.15};
 Electrode static_electrode() { return Electrode::at_polar(0.267, 30.0 * kDeg, 0.019, kVoltage); }
 
-// Corona wire of §2.2: Ø 0.2 mm, axis 50 mm from the drum surface at 45°.
+// Corona wire of §3.2: Ø 0.2 mm, axis 50 mm from the drum surface at 45°.
 Electrode corona_wire() { return Electrode::at_polar(0.16 + 0.050, 45.0 * kDeg, 1e-4, kVoltage); }
 
 Vec3 polar(double radius, double theta, const Vec2& centre = Vec2::Zero()) {
@@ -67,7 +67,7 @@ std::vector<Vec3> gap_points() {
           {0.21, 0.18, 0.0}, {0.0, -0.2, 0.0},   {-0.2, 0.1, 0.0}};
 }
 
-// ----------------------------------------------------------- §2.1 bipolar --
+// ----------------------------------------------------------- §3.1 bipolar --
 
 // Regression values printed to 5 digits: tolerance half a unit of the last.
 TEST(BipolarField, ConstructionConstantsMatchPhysicsMd) {
@@ -81,7 +81,7 @@ TEST(BipolarField, ConstructionConstantsMatchPhysicsMd) {
 TEST(BipolarField, DrumSurfaceFieldMatchesPhysicsMdTable) {
   struct Row {
     double theta_deg;
-    double table;      // PHYSICS §2.1, kV/cm, printed to 0.01
+    double table;      // docs/physics.md §3.1, kV/cm, printed to 0.01
     double reference;  // same formulas evaluated independently (Python), kV/cm
   };
   const Row rows[] = {{-30, 0.68, 0.676952}, {-15, 1.01, 1.008657}, {0, 1.62, 1.616408},
@@ -148,14 +148,14 @@ TEST(BipolarField, RejectsElectrodeTouchingDrum) {
   EXPECT_THROW(BipolarField({0.16, 0.0}, static_electrode()), std::invalid_argument);
 }
 
-// -------------------------------------------------------- §2.2 line charge --
+// -------------------------------------------------------- §3.2 line charge --
 
 TEST(LineChargeField, StaticElectrodeAloneGives337OnDrum) {
   const LineChargeField field(kDrum, {static_electrode()});
   const double theta = 30.0 * kDeg;
   const double magnitude = field.field(polar(kDrum.radius, theta)).norm() / kKvPerCm;
   EXPECT_NEAR(magnitude, 3.37, 0.01 * 3.37);
-  // Against the exact §2.1 value 3.285: about 2.5 % high, as §2.2 says.
+  // Against the exact §3.1 value 3.285: about 2.5 % high, as §3.2 says.
   const double exact = BipolarField(kDrum, static_electrode()).field(polar(0.16, theta)).norm();
   EXPECT_NEAR(magnitude * kKvPerCm / exact, 1.025, 0.005);
 }
@@ -194,7 +194,7 @@ std::pair<double, double> drum_peak(const LineChargeField& field) {
   return peak;
 }
 
-// §2.2's "drum field peaks at 4.2 kV/cm under the wire" is reproduced only
+// §3.2's "drum field peaks at 4.2 kV/cm under the wire" is reproduced only
 // with the static electrode present too, both at −35 kV; the peak is then
 // at ≈ 40°, between the two, and 4.04 kV/cm right under the wire. The wire
 // alone gives 2.30 kV/cm.
@@ -220,7 +220,7 @@ TEST(LineChargeField, ConductorsAndWidth) {
                std::invalid_argument);
 }
 
-// ---------------------------------------------------------------- §2.3 grid --
+// ---------------------------------------------------------------- §3.3 grid --
 
 std::filesystem::path write_file(const std::string& name, const std::string& text) {
   const std::filesystem::path path =
@@ -361,7 +361,7 @@ TEST(ElectricField, VariantDispatches) {
   EXPECT_EQ(field_at(grid, {0.5, 0.5, 0.0}), Vec3(1, 2, 3));
 }
 
-// ------------------------------------------------------- §3 charges, forces --
+// ------------------------------------------------------- §5 charges, forces --
 
 constexpr double kCopperDensity = 8960.0;
 constexpr double kFr4Density = 1850.0;
@@ -410,7 +410,7 @@ TEST(ConductorCharge, LiftIsAwayFromDrumForEitherPolarity) {
   for (double e_n : {3e5, -3e5}) {
     const double q = conductor_induced_charge(r, e_n, 1.0);
     EXPECT_EQ(std::signbit(q), std::signbit(e_n));
-    // §3's shorthand 1.37 π ε0 d² E² (0.832 · π²/6 = 1.3686, so 0.1 %).
+    // §5's shorthand 1.37 π ε0 d² E² (0.832 · π²/6 = 1.3686, so 0.1 %).
     EXPECT_NEAR(conductor_lift_force(q, e_n),
                 1.37 * kPi * kVacuumPermittivity * 4 * r * r * e_n * e_n,
                 0.002 * conductor_lift_force(q, e_n));
@@ -424,7 +424,7 @@ TEST(Pauthenier, SaturationEqualsSeedForm) {
   EXPECT_DOUBLE_EQ(pauthenier_factor(4.4), 2.0625);
 }
 
-// §3: τ_c = 0.11–0.18 s at J = 1e-4 A/m² for the drum fields of §2.
+// §5: τ_c = 0.11–0.18 s at J = 1e-4 A/m² for the drum fields of §3.
 TEST(Pauthenier, TimeConstantAtReferenceCurrent) {
   EXPECT_NEAR(pauthenier_time_constant(3.29e5, 1e-4), 0.1165, 0.0005);
   EXPECT_NEAR(pauthenier_time_constant(-3.29e5, 1e-4), 0.1165, 0.0005);
@@ -530,7 +530,7 @@ TEST(Drag, SchillerNaumannMatchesCdForm) {
   EXPECT_EQ(schiller_naumann_cd(1e5), 0.44);
 }
 
-// §3: "At Re = 17–400 Stokes under-predicts by 2–10×".
+// §5: "At Re = 17–400 Stokes under-predicts by 2–10×".
 TEST(Drag, StokesUnderPredictsAtSeedReynoldsNumbers) {
   const auto ratio = [](double re) { return schiller_naumann_cd(re) / (24.0 / re); };
   EXPECT_NEAR(ratio(17.0), 2.0, 0.1);

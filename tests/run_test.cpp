@@ -18,9 +18,9 @@
 #include <sstream>
 #include <thread>
 
-#include "dynamics/world.hpp"
+#include "sim/world.hpp"
 #include "feed/feeder.hpp"
-#include "output/collection.hpp"
+#include "collect/collection.hpp"
 #include "output/compare.hpp"
 #include "output/files.hpp"
 
@@ -74,14 +74,10 @@ template <class Check>
 void run_feeders(std::shared_ptr<Model> model, const std::vector<Feed>& feeds, int steps,
                  Check check, std::uint64_t seed = 1) {
   World world(model);
-  std::vector<std::unique_ptr<feed::Feeder>> feeders;
-  for (const Feed& f : feeds) {
-    feed::Feeder* p = feeders.emplace_back(std::make_unique<feed::Feeder>(f, seed, *model)).get();
-    world.add_pre_step([p](World& w) { (*p)(w); });
-  }
+  for (const Feed& f : feeds) world.add_feed(f, seed);
   for (int i = 0; i < steps; ++i) {
     world.step();
-    check(world, feeders);
+    check(world, world.feeders());
   }
 }
 
@@ -98,7 +94,7 @@ TEST(RunFeeder, MassRateTracksRateTimesTimeWithinOneParticle) {
   double last = 0;
   run_feeders(make_model(), {f}, 150, [&](const World& w, const auto& feeders) {
     const double elapsed = std::clamp(w.time() - f.start, 0.0, f.duration);
-    const double fed = feeders[0]->stats().total().kg();
+    const double fed = feeders[0].stats().total().kg();
     EXPECT_LE(std::abs(fed - f.mass_rate * elapsed), heaviest) << "t = " << w.time();
     last = fed;
   });
@@ -110,9 +106,9 @@ TEST(RunFeeder, CountRateTracksRateTimesTimeWithinOneParticle) {
                      {component(kCopper, 1.0, 1e-3, 1e-3)});
   f.count_rate = 1234.5;
   run_feeders(make_model(), {f}, 100, [&](const World& w, const auto& feeders) {
-    const double fed = double(feeders[0]->stats().total().count);
+    const double fed = double(feeders[0].stats().total().count);
     EXPECT_LE(std::abs(fed - f.count_rate * w.time()), 1.0) << "t = " << w.time();
-    EXPECT_EQ(w.particles().size(), feeders[0]->stats().total().count);
+    EXPECT_EQ(w.particles().size(), feeders[0].stats().total().count);
   });
 }
 
@@ -122,7 +118,7 @@ TEST(RunFeeder, MixMassFractionsConvergeWithinOneParticle) {
   f.mass_rate = 5e-3;
   const double heaviest = std::max(sphere_mass(8960, 1.2e-3), sphere_mass(1850, 2e-3));
   run_feeders(make_model(), {f}, 100, [&](const World&, const auto& feeders) {
-    const feed::FeedStats& s = feeders[0]->stats();
+    const feed::FeedStats& s = feeders[0].stats();
     const double total = s.total().kg();
     EXPECT_LE(std::abs(s.fed[0].kg() - 0.3 * total), heaviest);
     EXPECT_LE(std::abs(s.fed[1].kg() - 0.7 * total), heaviest);
@@ -170,23 +166,28 @@ TEST(RunFeeder, SpawnsWithoutOverlapAndCountsRetriesAndDeferrals) {
   f.count_rate = 20000;
   f.max_attempts = 10;
   World world(model);
-  feed::Feeder feeder(f, 7, *model);
-  std::size_t checked = 0;
-  world.add_pre_step([&](World& w) {
-    feeder(w);
-    // Every particle added this step keeps clear of bodies and of all others.
-    const Particles& p = w.particles();
-    for (std::size_t a = checked; a < p.size(); ++a) {
-      EXPECT_GE(body_clearance(*model, w, p, a), 0.0) << "particle " << p.id[a];
-      for (std::size_t b = 0; b < a; ++b)
-        EXPECT_GE(clearance(*model, p, a, b), 0.0) << p.id[a] << " vs " << p.id[b];
+  world.add_feed(f, 7);
+  // Every particle added this step keeps clear of bodies and of all others.
+  struct Clearances : StepObserver {
+    const Model& model;
+    std::size_t checked = 0;
+    explicit Clearances(const Model& m) : model(m) {}
+    void after(Stage stage, const World& w) override {
+      if (stage != Stage::Feed) return;
+      const Particles& p = w.particles();
+      for (std::size_t a = checked; a < p.size(); ++a) {
+        EXPECT_GE(body_clearance(model, w, p, a), 0.0) << "particle " << p.id[a];
+        for (std::size_t b = 0; b < a; ++b)
+          EXPECT_GE(clearance(model, p, a, b), 0.0) << p.id[a] << " vs " << p.id[b];
+      }
+      checked = p.size();
     }
-    checked = p.size();
-  });
-  for (int i = 0; i < 10; ++i) world.step();
+  } clearances(*model);
+  for (int i = 0; i < 10; ++i) world.step(&clearances);
   EXPECT_GT(world.particles().size(), 20u);
-  EXPECT_GT(feeder.stats().retries, 0u);
-  EXPECT_GT(feeder.stats().deferrals, 0u);
+  const feed::FeedStats& stats = world.feeders()[0].stats();
+  EXPECT_GT(stats.retries, 0u);
+  EXPECT_GT(stats.deferrals, 0u);
 }
 
 // (position, scale, material) of every particle left of x = 0.
@@ -248,8 +249,8 @@ Simulation collector_sim() {
 TEST(RunCollection, BinsProductsCrossingsAndLosses) {
   const Simulation sim = collector_sim();
   World world(sim.model);
-  output::Collection collection(sim, output::shape_sizes(sim));
-  world.add_post_step([&](World& w) { collection(w); });
+  world.set_collection(sim.collectors, sim.domain, shape_sizes(sim));
+  const collect::Collection& collection = *world.collection();
   const Vec3 down(0, -1, 0);
   // Falling at 1 m/s from y = 0.1005: they cross y = 0 at t = 0.1005 s, mid-step.
   for (double x : {0.005, 0.0125, 0.0175, 0.055, 0.095})
@@ -264,14 +265,13 @@ TEST(RunCollection, BinsProductsCrossingsAndLosses) {
                      Vec3(std::numeric_limits<double>::quiet_NaN(), 0, 0));
   for (int i = 0; i < 150; ++i) world.step();
 
-  collection.sort_records();
   ASSERT_EQ(collection.crossings().size(), 7u);
-  for (const output::Crossing& c : collection.crossings()) {
+  for (const collect::Crossing& c : collection.crossings()) {
     EXPECT_NEAR(c.time, 0.1005, 1e-12);
     EXPECT_NEAR(c.position.y(), 0.0, 1e-12);
     EXPECT_NEAR(c.diameter, 1e-3, 1e-15);
   }
-  const output::CollectorTallies& t = collection.collectors()[0];
+  const collect::CollectorTallies& t = collection.collectors()[0];
   const std::size_t nm = collection.material_count();
   EXPECT_EQ(t.bins[0 * nm + kCopper].count, 1u);
   EXPECT_EQ(t.bins[1 * nm + kCopper].count, 2u);
@@ -282,14 +282,14 @@ TEST(RunCollection, BinsProductsCrossingsAndLosses) {
   EXPECT_EQ(t.products[0 * nm + kCopper].count, 3u);
   EXPECT_EQ(t.products[1 * nm + kCopper].count, 2u);
   EXPECT_EQ(t.products[0 * nm + kFr4].count, 1u);
-  EXPECT_EQ(t.total[kCopper].mass, 5 * output::to_mass_units(sphere_mass(8960, 1e-3) * 1.0));
+  EXPECT_EQ(t.total[kCopper].mass, 5 * to_mass_units(sphere_mass(8960, 1e-3) * 1.0));
   // Crossings sorted by (time, id): equal times, so by id.
   for (std::size_t k = 1; k < collection.crossings().size(); ++k)
     EXPECT_LT(collection.crossings()[k - 1].id, collection.crossings()[k].id);
 
   ASSERT_EQ(collection.losses().size(), 2u);
-  EXPECT_EQ(collection.lost(output::LossReason::LeftDomain)[kCopper].count, 1u);
-  EXPECT_EQ(collection.lost(output::LossReason::NonFinite)[kCopper].count, 1u);
+  EXPECT_EQ(collection.lost(collect::LossReason::LeftDomain)[kCopper].count, 1u);
+  EXPECT_EQ(collection.lost(collect::LossReason::NonFinite)[kCopper].count, 1u);
   EXPECT_EQ(world.particles().size(), 1u);  // the one rising from below
 }
 
@@ -379,8 +379,8 @@ TEST(RunOutputs, SameSeedGivesIdenticalTables) {
   EXPECT_TRUE(output::compare_outputs(a, b, {}).agree());
 }
 
-TEST(RunOutputs, ErrorMidRunKeepsOutputsAndSaysIncomplete) {
-  const fs::path dir = fresh_dir("error");
+TEST(RunOutputs, ErrorMidRunKeepsOutputsAsideAndSaysIncomplete) {
+  const fs::path dir = fresh_dir("error"), partial = dir / "partial";
   Simulation sim = small_run(dir);
   // A second feed that starts at 50 ms and makes impossible particles: its
   // hook throws mid-run.
@@ -393,24 +393,26 @@ TEST(RunOutputs, ErrorMidRunKeepsOutputsAndSaysIncomplete) {
   const RunResult r = run(sim, {.out_dir = "", .progress = false, .quiet = true});
   EXPECT_FALSE(r.complete);
   EXPECT_NE(r.reason.find("broken"), std::string::npos) << r.reason;
-  const nlohmann::json s = read_json(dir / "summary.json");
+  EXPECT_EQ(r.out_dir, partial.string());
+  const nlohmann::json s = read_json(partial / "summary.json");
   EXPECT_FALSE(s["complete"].get<bool>());
   EXPECT_EQ(s["reason"].get<std::string>(), r.reason);
   // Its first particle is drawn by the step from 49 to 50 ms, which fails.
   EXPECT_EQ(s["steps"].get<int>(), 49);
   EXPECT_TRUE(s["balance"]["exact"].get<bool>());
   for (const char* name : {"bins.csv", "products.csv", "crossings.csv", "steps.csv"})
-    EXPECT_TRUE(fs::exists(dir / name)) << name;
+    EXPECT_TRUE(fs::exists(partial / name)) << name;
+  EXPECT_FALSE(fs::exists(dir / "summary.json"));
 }
 
 TEST(RunOutputs, SignalStopsTheRunBetweenStepsAndSaysIncomplete) {
-  const fs::path dir = fresh_dir("signal");
+  const fs::path dir = fresh_dir("signal"), partial = dir / "partial";
   Simulation sim = small_run(dir);
   sim.end_time = 1e4;  // would run for a very long time
   std::thread interrupter([&] {
-    // The first summary (complete: false, "running") appears once the
+    // The first summary (complete: false, no end recorded) appears once the
     // handlers are installed.
-    while (!fs::exists(dir / "summary.json"))
+    while (!fs::exists(partial / "summary.json"))
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     std::raise(SIGTERM);
@@ -419,11 +421,11 @@ TEST(RunOutputs, SignalStopsTheRunBetweenStepsAndSaysIncomplete) {
   interrupter.join();
   EXPECT_FALSE(r.complete);
   EXPECT_EQ(r.reason, "interrupted by SIGTERM");
-  const nlohmann::json s = read_json(dir / "summary.json");
+  const nlohmann::json s = read_json(partial / "summary.json");
   EXPECT_FALSE(s["complete"].get<bool>());
   EXPECT_EQ(s["reason"].get<std::string>(), "interrupted by SIGTERM");
   EXPECT_GT(s["steps"].get<int>(), 0);
-  EXPECT_TRUE(fs::exists(dir / "bins.csv"));
+  EXPECT_TRUE(fs::exists(partial / "bins.csv"));
 }
 
 TEST(RunCompare, WassersteinOfShiftedSamplesIsTheShift) {

@@ -1,4 +1,4 @@
-// Scene files in (issue 3): units, includes, overrides, YAML/JSON parity,
+// Scene files in: units, includes, overrides, YAML/JSON parity,
 // the resolved scene, active components, and the bad-scene suite.
 #include "scene/scene.hpp"
 

@@ -1,4 +1,4 @@
-// The separator from a scene file, end to end (issue 4): the scene keys
+// The separator from a scene file, end to end: the scene keys
 // compile to the field model, charging zones, electrical materials, drag
 // and particle shapes; the runner installs only what a scene asks for; the
 // field picture is the field model's; a short feed of the reference machine
@@ -115,13 +115,13 @@ TEST(SeparatorScene, MaterialsSayHowTheyConduct) {
     if (names[m].name != "fr4") continue;
     EXPECT_EQ(e.metal_fraction, 0.0);
     EXPECT_EQ(e.relative_permittivity, 4.4);
-    // From the resistivity: eps0 epsr rho = 39 s (PHYSICS.md §3).
+    // From the resistivity: eps0 epsr rho = 39 s (docs/physics.md §5).
     EXPECT_NEAR(e.decay_time, fields::relaxation_time(4.4, 1e12), 1e-12);
     EXPECT_NEAR(e.decay_time, 38.96, 0.01);
   }
 }
 
-// A scene without air and electrodes builds neither (DESIGN.md §1).
+// A scene without air and electrodes builds neither (docs/architecture.md).
 TEST(SeparatorScene, AbsentSectionsBuildNothing) {
   const Simulation sim = load(kScenes + "default.yaml");
   EXPECT_FALSE(sim.drag);

@@ -1,10 +1,10 @@
 // The separator's force stages in the World (fields/stages.hpp) against the
-// closed forms and regression values of PHYSICS.md §3–§4. Each test states
+// closed forms and regression values of docs/physics.md §3–§4. Each test states
 // its tolerance and assumptions.
 //
 // Frame: drum axis = z through the origin, gravity −y. The drum turns
 // clockwise seen from +z, so its top moves toward +x, where the electrode
-// is (PHYSICS §1); θ is measured from the top in the direction of rotation.
+// is (docs/physics.md §2); θ is measured from the top in the direction of rotation.
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -18,9 +18,10 @@
 #include <string>
 #include <vector>
 
-#include "dynamics/world.hpp"
+#include "sim/world.hpp"
 #include "feed/shapes.hpp"
-#include "fields/stages.hpp"
+#include "fields/drag.hpp"
+#include "fields/electrostatics.hpp"
 
 namespace ces::fields {
 namespace {
@@ -29,9 +30,9 @@ constexpr double kG = 9.81;
 constexpr double kDeg = kPi / 180.0;
 constexpr double kEps0 = 8.8541878128e-12;
 constexpr double kEpsAir = 1.0006;
-constexpr double kDrumRadius = 0.16;  // PHYSICS §1
+constexpr double kDrumRadius = 0.16;  // docs/physics.md §2
 constexpr double kHalfWidth = 0.15;
-constexpr double kCopper = 8960.0;  // PHYSICS §5
+constexpr double kCopper = 8960.0;  // docs/physics.md §7
 constexpr double kFr4 = 1850.0;
 constexpr double kFr4Permittivity = 4.4;
 
@@ -77,7 +78,7 @@ RigidBody drum(double omega) {
   return b;
 }
 
-// Reference machine of PHYSICS §2.1: static electrode Ø 38 mm, axis 0.267 m
+// Reference machine of docs/physics.md §3.1: static electrode Ø 38 mm, axis 0.267 m
 // from the drum axis at 30° above horizontal, −35 kV.
 ElectricField reference_field() {
   return BipolarField(Drum{kDrumRadius, kHalfWidth},
@@ -122,7 +123,7 @@ double drum_load(const World& w, std::size_t i) {
 }
 
 // Conductor sphere on the grounded drum: induced charge and lift force,
-// written out from PHYSICS §3 (not through fields/charge.hpp).
+// written out from docs/physics.md §5 (not through fields/charge.hpp).
 double induced_charge(double r, double en) {
   return 2.0 / 3.0 * kPi * kPi * kPi * kEps0 * kEpsAir * r * r * en;
 }
@@ -137,14 +138,14 @@ double image_pull(double q, double r) {
 // speed and is followed until it first has no load-bearing drum contact.
 //
 // Assumptions: the particle is carried at drum speed, neither slipping nor
-// rolling, as PHYSICS §4's closed form requires. A flake does not roll; the
+// rolling, as docs/physics.md §5.6's closed form requires. A flake does not roll; the
 // sphere is given infinite inertia to behave like one. Friction μ = 1000:
 // carried rigidly, the particle needs μ N >= m g sin θ, which fails only
 // within ~atan(1/μ) of the lift-off angle (0.06°).
 //
 // "Carrying load": a normal impulse above 2 m g h / μ. Once the particle has
 // left, its contact stays in the list while inside the collision envelope,
-// and the CCP's cone relaxation (DESIGN §4) leaves it on the friction cone
+// and the CCP's cone relaxation (Anitescu and Tasora, 2010) leaves it on the friction cone
 // with γ_n = |γ_t| / μ <= m g h / μ (measured: 0.1 % of m g h). The
 // threshold makes the detection early by at most 2/μ of m g in N: 0.15°.
 constexpr double kCarryFriction = 1000.0;
@@ -177,7 +178,7 @@ double lift_off_angle(double omega, bool electric) {
   w.add_particle(kSphere, kCuRadius, 1, x0, Quat::Identity(), carried_velocity(omega, x0),
                  carried_spin(omega));
   w.particles().inv_inertia[0].setZero();
-  if (electric) add_electrostatics_stage(w, electrostatics(reference_field(), mats));
+  if (electric) w.set_electrostatics(electrostatics(reference_field(), mats));
   const double load_threshold = 2.0 * w.particles().mass[0] * kG * kLiftStep / kCarryFriction;
   bool carried = false;
   for (int i = 0; i < 20000; ++i) {
@@ -191,7 +192,7 @@ double lift_off_angle(double omega, bool electric) {
   return -1.0;
 }
 
-// First θ where m ω² ρ + F_e,n(θ) = m g cos θ (PHYSICS §4) with the centre
+// First θ where m ω² ρ + F_e,n(θ) = m g cos θ (docs/physics.md §5.6) with the centre
 // at ρ = R + r (the closed form's R is the centre's radius: R + r used
 // consistently), F_e,n the lift force in the field at the centre: scanned
 // at 0.5°, then bisected.
@@ -214,7 +215,7 @@ double closed_form_lift_off(double omega, bool electric) {
   return 0.5 * (lo + hi);
 }
 
-// PHYSICS §4's table (R + r instead of R moves these by < 0.05°), then
+// docs/physics.md §5.6's table (R + r instead of R moves these by < 0.05°), then
 // the simulated angle against the closed form. Tolerance 1°.
 TEST(LiftOff, CopperLeavesDrumWhereCentrifugalForceBeatsGravity) {
   const std::array<std::array<double, 2>, 3> table = {{{30.0, 80.7}, {44.8, 69.0}, {60.0, 49.9}}};
@@ -225,7 +226,7 @@ TEST(LiftOff, CopperLeavesDrumWhereCentrifugalForceBeatsGravity) {
   }
 }
 
-// With the field of PHYSICS §2.1 the lift force adds to the centrifugal
+// With the field of docs/physics.md §3.1 the lift force adds to the centrifugal
 // force: earlier lift-off, where the closed form with F_e,n says. The shift
 // is checked to exceed the tolerance, so the test tells the two apart.
 TEST(LiftOff, ElectricLiftMakesCopperLeaveEarlier) {
@@ -254,7 +255,7 @@ double world_landing(const Launch& l, DragLaw law, double step) {
   auto m = make_model(step, {{l.density, 0.5, ElectricalMaterial::insulator(1.0)}});
   World w(m);
   w.add_particle(kSphere, l.radius, 1, l.position, Quat::Identity(), l.velocity);
-  add_drag_stage(w, {Air{}, law});
+  w.set_drag({Air{}, law});
   Vec3 before = l.position;
   while (true) {
     w.step();
@@ -293,7 +294,7 @@ double ode_landing(const Launch& l, DragLaw law) {
 // setups below, 2.0 mm for the steep launch; 0.5 ms halves that.
 constexpr double kFlightStep = 5e-4;
 
-// PHYSICS §4's setup, reconstructed: d = 1 mm released from the drum top
+// docs/physics.md §5.6's setup, reconstructed: d = 1 mm released from the drum top
 // (0, R) at the surface speed ωR, horizontally, at 100 rpm (the ODE gives
 // 0.5112, 0.5034, 0.5039, 0.4679 m). The regression values are printed to
 // 1 mm, so the ODE must match them within 0.5 mm; the World must match the
@@ -329,6 +330,17 @@ TEST(Ballistic, SteepLaunchOfLightGrainMatchesOde) {
   EXPECT_GT(stokes - sn, 0.1);
 }
 
+// The forces of this step and where the particles were, read after the
+// forces stage.
+struct ForceProbe : StepObserver {
+  std::vector<Vec3> force, position;
+  void after(Stage stage, const World& world) override {
+    if (stage != Stage::Forces) return;
+    force = world.particles().force;
+    position = world.particles().position;
+  }
+};
+
 // A cluster feels the drag of its equivalent sphere, r = scale (3V/4π)^⅓
 // (two unit spheres: V = 8π/3, r = 2^⅓ scale). Tolerance 1e-12 relative.
 TEST(Drag, ClusterUsesEquivalentSphere) {
@@ -337,10 +349,10 @@ TEST(Drag, ClusterUsesEquivalentSphere) {
   const double scale = 0.4e-3;
   const Vec3 v(1.0, -2.0, 0.5);
   w.add_particle(kPair, scale, 1, Vec3::Zero(), Quat::Identity(), v);
-  add_drag_stage(w, {Air{}, DragLaw::Stokes});
-  Vec3 force = Vec3::Zero();
-  w.add_force_stage([&](World& world, const Contacts&) { force = world.particles().force[0]; });
-  w.step();
+  w.set_drag({Air{}, DragLaw::Stokes});
+  ForceProbe probe;
+  w.step(&probe);
+  const Vec3 force = probe.force[0];
   const Vec3 expected = -6.0 * kPi * Air{}.viscosity * std::cbrt(2.0) * scale * v;
   EXPECT_LT((force - expected).norm(), 1e-12 * expected.norm());
 }
@@ -372,7 +384,7 @@ void add_on_drum(World& w, int material, double theta) {
 
 // Pauthenier's law in a corona zone over the drum top, with the field model's
 // |E| at the particle (0.68 kV/cm: τ_c = 24 ms at J = 1e-4 A/m²), sampled
-// every 10 ms for 0.1 s against Q_s t/(t + τ_c) from PHYSICS §3 written out.
+// every 10 ms for 0.1 s against Q_s t/(t + τ_c) from docs/physics.md §5 written out.
 // A particle 20° from the top, outside the zone, stays neutral. Tolerance
 // 1 % of Q(t) (the stage's update is exact for a constant field; the
 // particle moves by less than 1 µm, so E does not change measurably).
@@ -388,7 +400,7 @@ TEST(Corona, PauthenierGrowthInZone) {
   zone.depth = 5e-3;
   zone.current_density = 1e-4;
   spec.corona = {zone};
-  add_electrostatics_stage(w, spec);
+  w.set_electrostatics(spec);
   const double e = field_at(reference_field(), w.particles().position[0]).norm();
   const double p = 3.0 * kFr4Permittivity / (kFr4Permittivity + 2.0);
   const double saturation = -4.0 * kPi * kEps0 * kFr4Radius * kFr4Radius * p * e;  // negative ions
@@ -404,7 +416,7 @@ TEST(Corona, PauthenierGrowthInZone) {
 }
 
 // The seed's corona zone, 80-100° from the top and 5 mm deep, charging to
-// saturation at once in 4.13 kV/cm (with space charge, PHYSICS §3 table).
+// saturation at once in 4.13 kV/cm (with space charge, docs/physics.md §5 table).
 CoronaZone saturation_zone() {
   CoronaZone zone;
   zone.angle_begin = 80.0 * kDeg;
@@ -425,7 +437,7 @@ TEST(Corona, SaturationModeChargesOnEntry) {
   CoronaZone zone = saturation_zone();
   zone.ion_sign = 1.0;
   spec.corona = {zone};
-  add_electrostatics_stage(w, spec);
+  w.set_electrostatics(spec);
   const double p = 3.0 * kFr4Permittivity / (kFr4Permittivity + 2.0);
   const double saturation = 4.0 * kPi * kEps0 * kFr4Radius * kFr4Radius * p * 4.13e5;
   w.step();
@@ -445,7 +457,7 @@ TEST(Decay, ChargedInsulatorRelaxesExponentially) {
   add_on_drum(w, 2, 10.0 * kDeg);
   add_on_drum(w, 3, -10.0 * kDeg);
   for (double& q : w.particles().charge) q = q0;
-  add_electrostatics_stage(w, electrostatics(reference_field(), mats));
+  w.set_electrostatics(electrostatics(reference_field(), mats));
   for (int i = 1; i <= 200; ++i) {
     w.step();
     if (i % 10 != 0) continue;
@@ -488,7 +500,7 @@ PinRun pin_run(double charge_over_threshold, double duration) {
   const double threshold =
       std::sqrt(outward * 4.0 * kPi * kEps0 * kEpsAir * 4.0 * kFr4Radius * kFr4Radius);
   w.particles().charge[0] = charge_over_threshold * threshold;
-  add_electrostatics_stage(w, electrostatics(no_field(), mats));
+  w.set_electrostatics(electrostatics(no_field(), mats));
   PinRun run{0.0, false};
   for (int i = 0; i * m->step < duration; ++i) {
     w.step();
@@ -507,7 +519,7 @@ TEST(Pinning, Fr4StaysPinnedAboveImageForceThresholdAndFliesBelow) {
 
 // ------------------------------------------------------------------- brush --
 
-// The brush of PHYSICS §1 (radius 53 mm, at 9 o'clock touching the drum),
+// The brush of docs/physics.md §2 (radius 53 mm, at 9 o'clock touching the drum),
 // still. A charged FR-4 sphere dropped onto it loses its charge at the first
 // touch; one dropped onto the drum keeps it (no decay). No field, so only
 // gravity moves them. Exact.
@@ -529,7 +541,7 @@ TEST(Brush, TouchRemovesInsulatorCharge) {
   for (double& q : w.particles().charge) q = q0;
   ElectrostaticsSpec spec = electrostatics(no_field(), mats);
   spec.brush_body = 1;
-  add_electrostatics_stage(w, spec);
+  w.set_electrostatics(spec);
   const double fall_time = std::sqrt(2.0 * drop / kG);  // 20 ms
   for (int i = 0; i < int(0.5 * fall_time / m->step); ++i) w.step();
   EXPECT_EQ(w.particles().charge[0], q0);  // still falling
@@ -540,20 +552,9 @@ TEST(Brush, TouchRemovesInsulatorCharge) {
 
 // ---------------------------------------------------- forces in the step --
 
-// What the electrostatics stage added this step, and where the particles
-// were, read by a stage after it.
-struct ForceProbe {
-  std::vector<Vec3> force, position;
-  void attach(World& w) {
-    w.add_force_stage([this](World& world, const Contacts&) {
-      force = world.particles().force;
-      position = world.particles().position;
-    });
-  }
-};
 
 // Forces in the step they are computed, from that step's contacts, against
-// PHYSICS §3 written out; then the frozen charges in flight. Gravity off,
+// docs/physics.md §5 written out; then the frozen charges in flight. Gravity off,
 // reference field, still drum. Tolerance 1e-12 relative.
 //  0 copper touching the drum at 60° from the top (polar 30°, under the
 //    electrode): charge Q_c(E·n) and lift force 0.832 Q_c (E·n) n at once;
@@ -593,12 +594,11 @@ TEST(Forces, ActInTheStepTheyAreComputedAndChargesFreeze) {
   w.add_particle(kSphere, r, 3, off + 0.02 * Vec3::UnitZ());
   Particles& p = w.particles();
   for (std::size_t i = 1; i < p.size(); ++i) p.charge[i] = q;
-  add_electrostatics_stage(w, electrostatics(reference_field(), mats));
+  w.set_electrostatics(electrostatics(reference_field(), mats));
   ForceProbe probe;
-  probe.attach(w);
   const ElectricField field = reference_field();
 
-  w.step();
+  w.step(&probe);
   const Vec3 e = field_at(field, touching);
   const double en = e.dot(n), qc = induced_charge(r, en);
   const Vec3 lift = lift_force(r, en) * n;
@@ -624,7 +624,7 @@ TEST(Forces, ActInTheStepTheyAreComputedAndChargesFreeze) {
                                      image_pull(q, r + 1e-4) * radial(probe.position[5])));
 
   const double frozen = p.charge[0];
-  w.step();
+  w.step(&probe);
   for (std::size_t i : {0, 2})
     ASSERT_GT(probe.position[i].head<2>().norm() - kDrumRadius - r, 5e-4) << "still on the drum";
   EXPECT_EQ(p.charge[0], frozen);
@@ -659,7 +659,7 @@ std::shared_ptr<Model> flake_model(std::vector<MaterialSpec>& mats) {
 
 // Flat shapes take the face law, compact ones keep the sphere's. Areas by
 // the stage's grid count within 0.2 % of the exact union of discs; the
-// charging radius from S = 2A + 2√(πA) V/A written out (PHYSICS-free: the
+// charging radius from S = 2A + 2√(πA) V/A written out (independent of the code: the
 // assumption stated in stages.hpp), 1e-12 relative given the area.
 TEST(FlakeElectrics, FaceAreaChargingRadiusAndTilt) {
   const ParticleShape flake = unit_flake();
@@ -712,7 +712,7 @@ TEST(FlakeElectrics, FaceAreaChargingRadiusAndTilt) {
 
 // A charged FR-4 flake (scale 2 mm: 2 mm across, 0.4 mm thick) touching a
 // still drum on its top, in no field and without gravity: lying flat it is
-// pulled by Q² / (2 ε0 εr A) along −n (PHYSICS §3, written out here with
+// pulled by Q² / (2 ε0 εr A) along −n (docs/physics.md §5, written out here with
 // A = 19 π (0.1 s)²); stood on its rim it is pulled by the sphere law of its
 // equal-volume sphere. Tolerance 0.2 % (the stage's area count).
 TEST(FlakeElectrics, ImageForceOfAFlakeIsTheFaceLawLyingFlat) {
@@ -736,10 +736,9 @@ TEST(FlakeElectrics, ImageForceOfAFlakeIsTheFaceLawLyingFlat) {
     if ((stood * c).y() < lowest.y()) lowest = stood * c;
   w.add_particle(flake, s, 1, Vec3(0.0, kDrumRadius + r, 0.05) - s * lowest, stood);
   for (double& c : w.particles().charge) c = q;
-  add_electrostatics_stage(w, electrostatics(no_field(), mats));
+  w.set_electrostatics(electrostatics(no_field(), mats));
   ForceProbe probe;
-  probe.attach(w);
-  w.step();
+  w.step(&probe);
   const double area = kFlakeFace * s * s;
   const double face_law = q * q / (2.0 * kEps0 * kEpsAir * area);
   EXPECT_NEAR(probe.force[0].y(), -face_law, 0.002 * face_law);
@@ -767,7 +766,7 @@ TEST(FlakeElectrics, FlakeChargesToPauthenierDensityOverItsSurface) {
                  Quat::FromTwoVectors(e.face_normal, Vec3::UnitY()));
   ElectrostaticsSpec spec = electrostatics(reference_field(), mats);
   spec.corona = {saturation_zone()};
-  add_electrostatics_stage(w, spec);
+  w.set_electrostatics(spec);
   w.step();
   const double a = e.face_area * s * s;
   const double surface = 2.0 * a + 2.0 * std::sqrt(kPi * a) * shape.volume * s * s * s / a;
@@ -806,7 +805,7 @@ TEST(FlakeElectrics, SlidingFlakeIsPinnedAndCarried) {
   const double p = 3.0 * kFr4Permittivity / (kFr4Permittivity + 2.0);
   const double rq = s * e.charging_radius;
   w.particles().charge[0] = -4.0 * kPi * kEps0 * rq * rq * p * 4.13e5;
-  add_electrostatics_stage(w, electrostatics(reference_field(), mats));
+  w.set_electrostatics(electrostatics(reference_field(), mats));
   const auto slip = [&] {
     const Vec3& x = w.particles().position[0];
     return (w.particles().velocity[0] - carried_velocity(omega, x)).norm();
@@ -834,7 +833,7 @@ TEST(Electrostatics, RejectsSpecsThatDoNotFitTheModel) {
     ElectrostaticsSpec spec = electrostatics(reference_field(), mats);
     edit(spec);
     try {
-      add_electrostatics_stage(w, spec);
+      w.set_electrostatics(spec);
       ADD_FAILURE() << "accepted: " << what;
     } catch (const std::invalid_argument& err) {
       EXPECT_NE(std::string(err.what()).find(what), std::string::npos) << err.what();
@@ -882,8 +881,8 @@ std::vector<double> charged_drum_state(int threads) {
   zone.angle_end = 95.0 * kDeg;
   zone.depth = 0.02;
   spec.corona = {zone};
-  add_electrostatics_stage(w, spec);
-  add_drag_stage(w, {Air{}, DragLaw::SchillerNaumann});
+  w.set_electrostatics(spec);
+  w.set_drag({Air{}, DragLaw::SchillerNaumann});
   for (int s = 0; s < 100; ++s) {
     if (s == 50)
       for (std::size_t i = w.particles().size(); i-- > 0;)

@@ -1,4 +1,4 @@
-// Stress scenes (scenes/stress/, issue 6), each in a short version run by the
+// Stress scenes (scenes/stress/), each in a short version run by the
 // ces-sim binary, checked on its summary.json:
 //   - the run completes with no NaN or Inf (the collectors remove a
 //     particle whose state turns non-finite, as lost: "non-finite state");

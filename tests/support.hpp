@@ -3,7 +3,7 @@
 #include <filesystem>
 #include <string>
 
-#include "dynamics/model.hpp"
+#include "model/model.hpp"
 
 namespace ces::test {
 

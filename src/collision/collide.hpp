@@ -1,27 +1,28 @@
-// The collide stage: particles against particles and against machine bodies.
+// Collision detection: particles against particles and against machine
+// bodies, in two stages (broadphase, narrowphase).
 #pragma once
 #include <vector>
 
 #include "collision/broadphase.hpp"
 #include "collision/contacts.hpp"
 #include "common/parallel.hpp"
-#include "dynamics/model.hpp"
-#include "dynamics/state.hpp"
+#include "model/model.hpp"
+#include "model/state.hpp"
 
 namespace ces {
 
 class Collider {
  public:
+  // Each particle's collision envelope for this step, and the pairs of
+  // particles whose envelopes overlap.
+  void broadphase(const Model& model, const Particles& particles);
   // Fills `out` with every pair closer than its collision envelope, in a
   // deterministic order: particle pairs by (i, j), then particle-body
-  // contacts by (body, particle, sphere, feature).
-  void collide(const Model& model, const Particles& particles, const Bodies& bodies,
-               Contacts& out);
-  double broadphase_seconds() const { return broadphase_seconds_; }
-  double narrowphase_seconds() const { return narrowphase_seconds_; }
+  // contacts by (body, particle, sphere, feature). After broadphase().
+  void narrowphase(const Model& model, const Particles& particles, const Bodies& bodies,
+                   Contacts& out);
 
  private:
-  double broadphase_seconds_ = 0, narrowphase_seconds_ = 0;
   void particle_pairs(const Model& model, const Particles& p, Contacts& out);
   void body_contacts(const Model& model, const Particles& p, const Bodies& bodies, int body,
                      Contacts& out);

@@ -85,7 +85,8 @@ double rayleigh_time(const Model& m, const Particles& p) {
 }
 
 void DemContacts::apply(const Model& model, const Particles& p, const Contacts& c, double h,
-                        SolverBodies& B) {
+                        ContactMemory& springs, SolverBodies& B) {
+  springs_ = &springs;
   cache_damping(model, c);
   const auto nc = std::ptrdiff_t(c.size());
   force_.resize(c.size());
@@ -110,7 +111,9 @@ void DemContacts::apply(const Model& model, const Particles& p, const Contacts& 
     B.v_free[u] += h * B.inv_mass[u] * f;
     B.w_free[u] += h * (B.inv_inertia[u] * torque);
   }
-  remember(c);
+  // Contacts not touching have xi 0: found next step, the same as not
+  // found. xi_ comes back with the last buffer; the next apply() refills it.
+  springs.assign(c.key, xi_);
 }
 
 DemContacts::PairConstants DemContacts::pair_constants(const Model& m, const Particles& p,
@@ -156,7 +159,7 @@ void DemContacts::contact_force(const Model& m, const Particles& p, const Contac
   // The history rotates with the contact: keep its length in the new tangent plane.
   Vec3 xi = Vec3::Zero();
   std::size_t guess = k;  // where the last step's order would have it
-  if (const Vec3* old = prev_xi_.find(c.key[k], guess)) {
+  if (const Vec3* old = springs_->find(c.key[k], guess)) {
     const Vec3 in_plane = *old - n.dot(*old) * n;
     if (in_plane.squaredNorm() > 0.0) xi = in_plane * (old->norm() / in_plane.norm());
   }
@@ -183,12 +186,6 @@ void DemContacts::cache_damping(const Model& m, const Contacts& c) {
 
 double DemContacts::damping(double e) const {
   return std::lower_bound(damping_.begin(), damping_.end(), std::make_pair(e, 0.0))->second;
-}
-
-void DemContacts::remember(const Contacts& c) {
-  // Contacts not touching have xi 0: found next step, the same as not
-  // found. xi_ comes back with the last buffer; apply() refills it.
-  prev_xi_.assign(c.key, xi_);
 }
 
 }  // namespace ces

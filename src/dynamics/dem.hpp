@@ -1,5 +1,5 @@
 // DEM baseline: Hertz-Mindlin penalty contact with viscous damping, for
-// comparison with DVI on the same collision detection (DESIGN.md §9, issue 6).
+// comparison with DVI on the same collision detection.
 //
 // Per overlapping contact (overlap d = -gap > 0, normal n from A to B):
 //   normal      F_n = 4/3 E* sqrt(R* d) d - c_n v_n,   clamped to F_n >= 0
@@ -19,15 +19,15 @@
 // dimensionless contact equation x'' = -max(0, x^1.5 + sqrt5 beta x^.25 x').
 //
 // Explicit: forces from the start-of-step state, then semi-implicit Euler in
-// World. Stable for h well below the Rayleigh time (see rayleigh_time()).
+// the contact dynamics. Stable for h well below the Rayleigh time (see rayleigh_time()).
 #pragma once
 #include <vector>
 
 #include "collision/contacts.hpp"
 #include "dynamics/adjacency.hpp"
 #include "dynamics/ccp.hpp"
-#include "dynamics/model.hpp"
-#include "dynamics/state.hpp"
+#include "model/model.hpp"
+#include "model/state.hpp"
 
 namespace ces {
 
@@ -45,9 +45,10 @@ double rayleigh_time(const Model& model, const Particles& particles);
 class DemContacts {
  public:
   // Adds h M^-1 (contact forces and torques) to bodies.v_free / w_free and
-  // updates the tangential history. `bodies` holds the start-of-step state.
+  // updates the tangential history `springs` (last step's, by key; part of
+  // the state). `bodies` holds the start-of-step state.
   void apply(const Model& model, const Particles& particles, const Contacts& contacts, double h,
-             SolverBodies& bodies);
+             ContactMemory& springs, SolverBodies& bodies);
 
  private:
   struct PairConstants {
@@ -59,11 +60,9 @@ class DemContacts {
                      double h, const SolverBodies& B);
   void cache_damping(const Model& model, const Contacts& c);
   double damping(double e) const;
-  void remember(const Contacts& c);
 
   std::vector<Vec3> force_, xi_;  // per contact: force on B (world), new history
-  // Last step's tangential history, by key.
-  ContactMemory prev_xi_;
+  const ContactMemory* springs_ = nullptr;  // during apply()
   // beta per restitution value met so far, sorted by e.
   std::vector<std::pair<double, double>> damping_;
   ContactAdjacency adj_;

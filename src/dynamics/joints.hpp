@@ -3,8 +3,8 @@
 #include <vector>
 
 #include "dynamics/ccp.hpp"
-#include "dynamics/model.hpp"
-#include "dynamics/state.hpp"
+#include "model/model.hpp"
+#include "model/state.hpp"
 
 namespace ces {
 

@@ -4,26 +4,13 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <sstream>
 #include <string>
+
+#include "common/hash.hpp"
 
 namespace ces::feed {
 namespace {
-
-std::uint64_t splitmix64(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-
-std::uint64_t fnv1a(std::string_view text) {
-  std::uint64_t h = 0xCBF29CE484222325ull;
-  for (const char c : text) {
-    h ^= std::uint8_t(c);
-    h *= 0x100000001B3ull;
-  }
-  return h;
-}
 
 const ParticleShape& shape_of(const Model& model, const FeedComponent& c) {
   return model.shapes.at(std::size_t(c.shape));
@@ -49,9 +36,9 @@ std::uint64_t stream_seed(std::uint64_t scene_seed, std::string_view feed_name) 
   return splitmix64(scene_seed ^ splitmix64(fnv1a(feed_name)));
 }
 
-output::Tally FeedStats::total() const {
-  output::Tally t;
-  for (const output::Tally& c : fed) t += c;
+Tally FeedStats::total() const {
+  Tally t;
+  for (const Tally& c : fed) t += c;
   return t;
 }
 
@@ -72,19 +59,19 @@ double Feeder::target(double t) const {
 }
 
 double Feeder::fed_amount() const {
-  const output::Tally t = stats_.total();
+  const Tally t = stats_.total();
   return feed_.mass_rate > 0.0 ? t.kg() : double(t.count);
 }
 
-void Feeder::operator()(World& world) {
-  const double goal = target(world.time() + model_->step);
+void Feeder::feed(State& state) {
+  const double goal = target(state.time + model_->step);
   neighbours_valid_ = false;
   while (fed_amount() < goal) {
     if (!pending_) pending_ = draw_candidate();
     const double amount = feed_.mass_rate > 0.0 ? pending_->mass : 1.0;
     // Add the particle only if that brings the fed amount closer to the goal.
     if (fed_amount() + 0.5 * amount > goal) return;
-    if (!place(world, *pending_)) {
+    if (!place(state, *pending_)) {
       ++stats_.deferrals;
       return;
     }
@@ -116,8 +103,7 @@ Feeder::Candidate Feeder::draw_candidate() {
   const double diameter = comp.size.sample(rng_);
   c.scale = diameter / comp.shape_size;
   const ParticleShape& shape = shape_of(*model_, comp);
-  const double density = model_->materials.materials().at(std::size_t(comp.material)).density;
-  c.mass = density * shape.volume * c.scale * c.scale * c.scale;  // as World::add_particle
+  c.mass = particle_mass(*model_, comp.shape, c.scale, comp.material);
   if (!(std::isfinite(c.mass) && c.mass > 0.0))
     throw std::runtime_error("feed '" + feed_.name + "': a particle of diameter " +
                              std::to_string(diameter) + " m has mass " + std::to_string(c.mass) +
@@ -130,34 +116,35 @@ Feeder::Candidate Feeder::draw_candidate() {
   return c;
 }
 
-bool Feeder::place(World& world, const Candidate& c) {
-  if (!neighbours_valid_) find_neighbours(world);
+bool Feeder::place(State& state, const Candidate& c) {
+  if (!neighbours_valid_) find_neighbours(state);
   const FeedComponent& comp = feed_.mix[std::size_t(c.component)];
   const geo::Aabb& region = feed_.region;
   for (int attempt = 0; attempt < feed_.max_attempts; ++attempt) {
     Vec3 x;
     for (int k = 0; k < 3; ++k) x[k] = region.min[k] + uniform() * (region.max[k] - region.min[k]);
     const Quat q = feed_.random_orientation ? random_orientation() : Quat::Identity();
-    if (overlaps_bodies(world, c, x, q) || overlaps_particles(world, c, x, q)) {
+    if (overlaps_bodies(state, c, x, q) || overlaps_particles(state, c, x, q)) {
       ++stats_.retries;
       continue;
     }
     Vec3 v = feed_.velocity;
     if (feed_.velocity_spread > 0.0)
       for (int k = 0; k < 3; ++k) v[k] += feed_.velocity_spread * (2.0 * uniform() - 1.0);
-    world.add_particle(comp.shape, c.scale, comp.material, x, q, v);
-    const Particles& p = world.particles();
+    add_particle(*model_, state, comp.shape, c.scale, comp.material, x, q, v);
+    const Particles& p = state.particles;
     neighbours_.push_back(p.size() - 1);
-    stats_.fed[std::size_t(c.component)].add(output::to_mass_units(p.mass.back()));
+    stats_.fed[std::size_t(c.component)].add(to_mass_units(p.mass.back()));
     return true;
   }
   return false;
 }
 
-bool Feeder::overlaps_bodies(const World& world, const Candidate& c, const Vec3& x, const Quat& q) {
+bool Feeder::overlaps_bodies(const State& state, const Candidate& c, const Vec3& x,
+                             const Quat& q) {
   const ParticleShape& s = shape_of(*model_, feed_.mix[std::size_t(c.component)]);
   for (std::size_t k = 0; k < model_->bodies.size(); ++k) {
-    const Pose& pose = world.bodies().pose[k];
+    const Pose& pose = state.bodies.pose[k];
     for (std::size_t j = 0; j < s.centers.size(); ++j) {
       const double r = c.scale * s.radii[j];
       hits_.clear();
@@ -170,11 +157,11 @@ bool Feeder::overlaps_bodies(const World& world, const Candidate& c, const Vec3&
   return false;
 }
 
-bool Feeder::overlaps_particles(const World& world, const Candidate& c, const Vec3& x,
+bool Feeder::overlaps_particles(const State& state, const Candidate& c, const Vec3& x,
                                 const Quat& q) const {
   const ParticleShape& s = shape_of(*model_, feed_.mix[std::size_t(c.component)]);
   const double radius = c.scale * s.bounding_radius;
-  const Particles& p = world.particles();
+  const Particles& p = state.particles;
   for (const std::size_t i : neighbours_) {
     const ParticleShape& o = model_->shapes[std::size_t(p.shape[i])];
     const double reach = radius + p.scale[i] * o.bounding_radius;
@@ -186,9 +173,9 @@ bool Feeder::overlaps_particles(const World& world, const Candidate& c, const Ve
 }
 
 // Candidates for contact with a new particle: within reach of the region.
-void Feeder::find_neighbours(const World& world) {
+void Feeder::find_neighbours(const State& state) {
   neighbours_.clear();
-  const Particles& p = world.particles();
+  const Particles& p = state.particles;
   const geo::Aabb& region = feed_.region;
   for (std::size_t i = 0; i < p.size(); ++i) {
     const double reach =
@@ -198,6 +185,34 @@ void Feeder::find_neighbours(const World& world) {
     if (outside.squaredNorm() <= reach * reach) neighbours_.push_back(i);
   }
   neighbours_valid_ = true;
+}
+
+void Feeder::save(ByteWriter& out) const {
+  std::ostringstream rng;
+  rng << rng_;
+  out.text(rng.str());
+  out.values(stats_.fed);
+  out.value(stats_.retries);
+  out.value(stats_.deferrals);
+  out.value(pending_.has_value());
+  out.value(pending_.value_or(Candidate{}));
+  out.value(max_bounding_radius_);
+}
+
+void Feeder::load(ByteReader& in) {
+  std::istringstream rng(in.text());
+  rng >> rng_;
+  if (!rng) throw CorruptData("feed '" + feed_.name + "': its random stream does not read");
+  in.values(stats_.fed);
+  if (stats_.fed.size() != feed_.mix.size())
+    throw CorruptData("feed '" + feed_.name + "': its mix has changed");
+  in.value(stats_.retries);
+  in.value(stats_.deferrals);
+  const bool pending = in.value<bool>();
+  const auto candidate = in.value<Candidate>();
+  pending_ = pending ? std::optional<Candidate>(candidate) : std::nullopt;
+  in.value(max_bounding_radius_);
+  neighbours_valid_ = false;
 }
 
 // 53 random bits from the raw engine: the same numbers with every standard

@@ -1,4 +1,4 @@
-// A feeder: the pre-step hook that adds a feed's particles to the World.
+// A feeder: the feed stage of one feed, which adds its particles to the state.
 //
 // Rate: the fed amount (mass or count) tracks rate * elapsed time; a particle
 // is added while doing so brings the fed amount closer to the target, so the
@@ -19,10 +19,12 @@
 #include <string_view>
 #include <vector>
 
-#include "dynamics/world.hpp"
+#include "common/serial.hpp"
+#include "common/tally.hpp"
+#include "feed/feed.hpp"
 #include "geometry/shapes.hpp"
-#include "output/tally.hpp"
-#include "sim/simulation.hpp"
+#include "model/model.hpp"
+#include "model/state.hpp"
 
 namespace ces::feed {
 
@@ -31,18 +33,18 @@ namespace ces::feed {
 std::uint64_t stream_seed(std::uint64_t scene_seed, std::string_view feed_name);
 
 struct FeedStats {
-  std::vector<output::Tally> fed;  // per mix component
+  std::vector<Tally> fed;  // per mix component
   std::uint64_t retries = 0;       // placement attempts that overlapped something
   std::uint64_t deferrals = 0;     // particles moved to a later step
-  output::Tally total() const;
+  Tally total() const;
 };
 
 class Feeder {
  public:
   Feeder(const Feed& feed, std::uint64_t scene_seed, const Model& model);
 
-  // The pre-step hook: feeds the step that starts at world.time().
-  void operator()(World& world);
+  // Feeds the step that starts at state.time: adds particles to the state.
+  void feed(State& state);
 
   const Feed& feed() const { return feed_; }
   const FeedStats& stats() const { return stats_; }
@@ -51,6 +53,11 @@ class Feeder {
   double target(double t) const;
   // The fed amount in the same unit as target().
   double fed_amount() const;
+
+  // What the feed carries from one step to the next (its random stream,
+  // tallies, the particle drawn but not yet placed), for checkpoints.
+  void save(ByteWriter& out) const;
+  void load(ByteReader& in);
 
  private:
   struct Candidate {
@@ -61,11 +68,11 @@ class Feeder {
 
   Candidate draw_candidate();
   int choose_component() const;
-  bool place(World& world, const Candidate& c);
-  bool overlaps_bodies(const World& world, const Candidate& c, const Vec3& x, const Quat& q);
-  bool overlaps_particles(const World& world, const Candidate& c, const Vec3& x,
+  bool place(State& state, const Candidate& c);
+  bool overlaps_bodies(const State& state, const Candidate& c, const Vec3& x, const Quat& q);
+  bool overlaps_particles(const State& state, const Candidate& c, const Vec3& x,
                           const Quat& q) const;
-  void find_neighbours(const World& world);
+  void find_neighbours(const State& state);
   double uniform();
   Quat random_orientation();
 

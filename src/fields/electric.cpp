@@ -58,7 +58,7 @@ BipolarField::BipolarField(const Drum& drum, const Electrode& electrode)
   const double R2 = electrode.radius;
   cos_a_ = electrode.centre.x() / L;
   sin_a_ = electrode.centre.y() / L;
-  // PHYSICS §2.1, term by term.
+  // docs/physics.md §3.1, term by term.
   h1_ = (L * L + R1 * R1 - R2 * R2) / (2.0 * L);
   h2_ = L - h1_;
   j_ = std::sqrt(h1_ * h1_ - R1 * R1);

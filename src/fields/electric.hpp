@@ -1,10 +1,10 @@
-// Electrostatic field models of the separator (PHYSICS.md §2).
+// Electrostatic field models of the separator (docs/physics.md §3).
 //
 // Frame: the drum axis is the z axis through the origin, the cross-section is
 // the x–y plane, gravity is −y. SI units throughout: m, V, V/m. Every model is
 // an immutable value: build it once, then query it from any thread.
 //
-// The two analytic models are 2-D (z-invariant). PHYSICS §2.2 switches the
+// The two analytic models are 2-D (z-invariant). docs/physics.md §3.2 switches the
 // electric forces off beyond the drum width, so their field() is zero for
 // |z| > half_width; their potential() is that of the cross-section and
 // ignores z. Inside a conductor (drum or electrode) the field is zero and the
@@ -38,13 +38,13 @@ struct Electrode {
   double potential = 0.0;      // V
 
   // Axis `distance` from the drum axis at `angle` (rad, counter-clockwise
-  // from +x), the way PHYSICS §1 describes the machine.
+  // from +x), the way docs/physics.md §2 describes the machine.
   static Electrode at_polar(double distance, double angle, double radius, double potential);
 };
 
 // Exact 2-D field of the grounded drum and one cylindrical electrode: two
 // line charges ±λ at the common inverse points (foci) of the two circles
-// (PHYSICS §2.1, implemented from the formulas there, not from the seed code).
+// (docs/physics.md §3.1, implemented from the formulas there, not from the seed code).
 class BipolarField {
  public:
   // Throws std::invalid_argument unless the radii and half-width are
@@ -54,14 +54,14 @@ class BipolarField {
   Vec3 field(const Vec3& p) const;        // V/m
   double potential(const Vec3& p) const;  // V
 
-  // The construction constants of §2.1, for regression checks.
+  // The construction constants of §3.1, for regression checks.
   double h1() const { return h1_; }  // m
   double h2() const { return h2_; }  // m
   double j() const { return j_; }    // m
   double f() const { return f_; }    // V
 
  private:
-  Vec2 to_electrode_frame(const Vec3& p) const;  // (x1, y1) of §2.1
+  Vec2 to_electrode_frame(const Vec3& p) const;  // (x1, y1) of §3.1
   bool in_drum(const Vec3& p) const;
   bool in_electrode(const Vec3& p) const;
 
@@ -73,8 +73,8 @@ class BipolarField {
 
 // Several electrodes as line charges at their axes, each with its image in
 // the grounded drum; the strengths make φ = U_k at the point of each
-// electrode nearest the drum (PHYSICS §2.2). Approximate: with the static
-// electrode alone it overestimates the drum field by ~2 % against §2.1.
+// electrode nearest the drum (docs/physics.md §3.2). Approximate: with the static
+// electrode alone it overestimates the drum field by ~2 % against §3.1.
 class LineChargeField {
  public:
   // Throws std::invalid_argument for an empty list, non-positive radii, an
@@ -104,7 +104,7 @@ class LineChargeField {
   std::vector<LineCharge> charges_;
 };
 
-// A field sampled on a regular 3-D grid (e.g. an FEA export, PHYSICS §2.3),
+// A field sampled on a regular 3-D grid (e.g. an FEA export, docs/physics.md §3.3),
 // trilinearly interpolated, zero outside the grid.
 class GridField {
  public:

@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "output/collection.hpp"
-#include "sim/simulation.hpp"
+#include "output/records.hpp"
+#include "spec/simulation.hpp"
 
 namespace ces::output {
 

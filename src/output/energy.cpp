@@ -15,9 +15,8 @@ double rotational(const Quat& q, const Vec3& inertia, const Vec3& w) {
 
 }  // namespace
 
-MechanicalEnergy mechanical_energy(const World& world) {
-  const Model& m = world.model();
-  const Particles& p = world.particles();
+MechanicalEnergy mechanical_energy(const Model& m, const State& state) {
+  const Particles& p = state.particles;
   MechanicalEnergy e;
   for (std::size_t i = 0; i < p.size(); ++i) {
     const double kinetic = 0.5 * p.mass[i] * p.velocity[i].squaredNorm() +
@@ -30,7 +29,7 @@ MechanicalEnergy mechanical_energy(const World& world) {
     e.kinetic += kinetic;
     e.potential += potential;
   }
-  const Bodies& b = world.bodies();
+  const Bodies& b = state.bodies;
   for (std::size_t k = 0; k < m.bodies.size(); ++k) {
     const RigidBody& body = m.bodies[k];
     if (body.kind != BodyKind::Dynamic) continue;
@@ -52,19 +51,25 @@ std::string why_not_passive(const Simulation& sim) {
   return "";
 }
 
-EnergyLedger::EnergyLedger(const Simulation& sim, const World& world) {
+EnergyLedger::EnergyLedger(const Simulation& sim, const State& state) : model_(sim.model.get()) {
   balance_.not_passive = why_not_passive(sim);
-  balance_.initial = balance_.final = last_ = mechanical_energy(world).total();
+  balance_.initial = balance_.final = last_ = mechanical_energy(*model_, state).total();
 }
 
-void EnergyLedger::after_feeds(const World& world) {
-  const double e = mechanical_energy(world).total();
+void EnergyLedger::after(Stage stage, const State& state) {
+  if (stage == Stage::Feed) after_feeds(state);
+  if (stage == Stage::Integrate) before_collectors(state);
+  if (stage == Stage::Collect) after_collectors(state);
+}
+
+void EnergyLedger::after_feeds(const State& state) {
+  const double e = mechanical_energy(*model_, state).total();
   balance_.fed += e - last_;
   last_ = e;
 }
 
-void EnergyLedger::before_collectors(const World& world) {
-  const MechanicalEnergy e = mechanical_energy(world);
+void EnergyLedger::before_collectors(const State& state) {
+  const MechanicalEnergy e = mechanical_energy(*model_, state);
   dynamics_ += e.total() - last_;
   lowest_ = std::min(lowest_, dynamics_);
   balance_.max_gain = std::max(balance_.max_gain, dynamics_ - lowest_);
@@ -72,11 +77,25 @@ void EnergyLedger::before_collectors(const World& world) {
   last_ = e.total();
 }
 
-void EnergyLedger::after_collectors(const World& world) {
-  const double e = mechanical_energy(world).total();
+void EnergyLedger::after_collectors(const State& state) {
+  const double e = mechanical_energy(*model_, state).total();
   balance_.removed += last_ - e;
   last_ = balance_.final = e;
   balance_.dissipated = balance_.initial + balance_.fed - balance_.removed - balance_.final;
+}
+
+void EnergyLedger::save(ByteWriter& out) const {
+  const EnergyBalance& b = balance_;
+  for (const double v : {b.initial, b.fed, b.removed, b.final, b.dissipated, b.max_gain,
+                         b.peak_kinetic, last_, dynamics_, lowest_})
+    out.value(v);
+}
+
+void EnergyLedger::load(ByteReader& in) {
+  EnergyBalance& b = balance_;
+  for (double* v : {&b.initial, &b.fed, &b.removed, &b.final, &b.dissipated, &b.max_gain,
+                    &b.peak_kinetic, &last_, &dynamics_, &lowest_})
+    in.value(*v);
 }
 
 }  // namespace ces::output

@@ -21,8 +21,11 @@
 #pragma once
 #include <string>
 
-#include "dynamics/world.hpp"
-#include "sim/simulation.hpp"
+#include "common/serial.hpp"
+#include "model/model.hpp"
+#include "model/state.hpp"
+#include "model/stats.hpp"
+#include "spec/simulation.hpp"
 
 namespace ces::output {
 
@@ -42,20 +45,29 @@ struct MechanicalEnergy {
   double kinetic = 0.0, potential = 0.0;
   double total() const { return kinetic + potential; }
 };
-MechanicalEnergy mechanical_energy(const World& world);
+MechanicalEnergy mechanical_energy(const Model& model, const State& state);
 
 // Why a scene is not passive ("kinematic body 'drum' moves"), or "".
 std::string why_not_passive(const Simulation& sim);
 
 class EnergyLedger {
  public:
-  EnergyLedger(const Simulation& sim, const World& world);
-  void after_feeds(const World& world);
-  void before_collectors(const World& world);
-  void after_collectors(const World& world);
+  EnergyLedger(const Simulation& sim, const State& state);
+  // Measures where the balance needs it: after the feed stage, and on both
+  // sides of the collect stage (after integrate, after collect).
+  void after(Stage stage, const State& state);
   const EnergyBalance& balance() const { return balance_; }
 
+  // The sums so far, for checkpoints.
+  void save(ByteWriter& out) const;
+  void load(ByteReader& in);
+
  private:
+  void after_feeds(const State& state);
+  void before_collectors(const State& state);
+  void after_collectors(const State& state);
+
+  const Model* model_;
   EnergyBalance balance_;
   double last_ = 0.0;      // E at the last measurement
   double dynamics_ = 0.0;  // running sum of the dynamics' change

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "sim/simulation.hpp"
+#include "spec/simulation.hpp"
 
 namespace ces::output {
 

@@ -5,12 +5,12 @@
 #include <string>
 #include <vector>
 
-#include "output/collection.hpp"
+#include "collect/collection.hpp"
 #include "output/energy.hpp"
 #include "output/step_log.hpp"
 #include "output/tables.hpp"
-#include "output/tally.hpp"
-#include "sim/simulation.hpp"
+#include "common/tally.hpp"
+#include "spec/simulation.hpp"
 
 namespace ces::output {
 
@@ -23,13 +23,6 @@ struct FeedRecord {
   std::uint64_t deferrals = 0;
 };
 
-// Wall time outside the engine's own stages (s).
-struct OwnTimes {
-  double feed = 0.0;
-  double collect = 0.0;
-  double output = 0.0;
-};
-
 // Everything a run reports, gathered by sim/run.cpp.
 struct RunRecord {
   const Simulation* sim = nullptr;
@@ -39,9 +32,10 @@ struct RunRecord {
   std::string reason;
   std::uint64_t steps = 0;
   double time = 0.0;  // simulated (s)
-  int threads = 1;
+  int threads = 1;              // the most a step used
+  bool threads_adaptive = false;  // chosen step by step (sim/threads.hpp)
+  std::vector<std::uint64_t> steps_at_threads;  // index = thread count
   double wall = 0.0;  // s
-  OwnTimes own;
   SolverSummary solver;
   EnergyBalance energy;
   std::vector<FeedRecord> feeds;
@@ -50,6 +44,7 @@ struct RunRecord {
   std::vector<ProductResult> products;
   std::size_t frames = 0;
   std::vector<std::string> warnings;
+  std::vector<std::string> files;  // the run's outputs, relative to its folder
 };
 
 // What a user should look at twice: solver caps, deep overlaps, deferred or

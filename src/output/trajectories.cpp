@@ -48,33 +48,63 @@ void line(std::string& out, auto value) {
 }  // namespace
 
 TrajectoryWriter::TrajectoryWriter(const std::filesystem::path& dir, const Simulation& sim,
-                                   std::vector<double> shape_size)
+                                   std::vector<double> shape_size, Start start)
     : dir_(dir),
       sim_(&sim),
       shape_size_(std::move(shape_size)),
       every_(sim.output.trajectories.every) {
   if (every_ <= 0.0) return;
   if (sim.output.trajectories.vtk) std::filesystem::create_directories(dir_ / "trajectories");
-  if (sim.output.trajectories.csv) {
-    csv_ = AtomicFile(dir_ / "trajectories.csv");
+  if (sim.output.trajectories.csv && start == Start::Fresh) {
+    csv_ = AppendFile(dir_ / "trajectories.csv");
     csv_.write("time_s,id,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,diameter_m,material\n");
   }
 }
 
-void TrajectoryWriter::observe(const World& world) {
+void TrajectoryWriter::observe(const State& state) {
   if (every_ <= 0.0) return;
-  const double due = world.time() + 0.5 * world.model().step;
+  const double due = state.time + 0.5 * sim_->model->step;
   if (due < double(next_frame_) * every_) return;
   next_frame_ = std::uint64_t(std::floor(due / every_)) + 1;
-  sort_by_id(world.particles());
-  if (sim_->output.trajectories.vtk) write_vtp(world);
-  frame_times_.push_back(world.time());
+  sort_by_id(state.particles);
+  if (sim_->output.trajectories.vtk) write_vtp(state);
+  frame_times_.push_back(state.time);
   if (sim_->output.trajectories.vtk) write_pvd();
-  if (csv_.is_open()) append_csv(world);
+  if (csv_.is_open()) append_csv(state);
 }
 
-void TrajectoryWriter::commit() {
-  if (csv_.is_open()) csv_.commit();
+void TrajectoryWriter::close() { csv_.close(); }
+
+std::vector<std::string> TrajectoryWriter::files() const {
+  std::vector<std::string> out;
+  if (every_ <= 0.0) return out;
+  if (sim_->output.trajectories.csv) out.push_back("trajectories.csv");
+  if (!sim_->output.trajectories.vtk || frame_times_.empty()) return out;
+  out.push_back("trajectories.pvd");
+  for (std::size_t k = 0; k < frame_times_.size(); ++k)
+    out.push_back("trajectories/" + frame_name(k));
+  return out;
+}
+
+void TrajectoryWriter::save(ByteWriter& out) {
+  out.value(next_frame_);
+  out.values(frame_times_);
+  out.value(csv_.flush());
+}
+
+void TrajectoryWriter::load(ByteReader& in) {
+  in.value(next_frame_);
+  in.values(frame_times_);
+  const auto length = in.value<std::uint64_t>();
+  if (every_ <= 0.0) return;
+  if (sim_->output.trajectories.csv) csv_ = AppendFile(dir_ / "trajectories.csv", length);
+  if (!sim_->output.trajectories.vtk) return;
+  // Frames after the checkpoint: written again as the run goes on.
+  for (std::size_t k = frame_times_.size();; ++k) {
+    const std::filesystem::path frame = dir_ / "trajectories" / frame_name(k);
+    if (!std::filesystem::remove(frame)) break;
+  }
+  if (!frame_times_.empty()) write_pvd();
 }
 
 void TrajectoryWriter::sort_by_id(const Particles& p) {
@@ -84,8 +114,8 @@ void TrajectoryWriter::sort_by_id(const Particles& p) {
             [&](std::size_t a, std::size_t b) { return p.id[a] < p.id[b]; });
 }
 
-void TrajectoryWriter::write_vtp(const World& world) {
-  const Particles& p = world.particles();
+void TrajectoryWriter::write_vtp(const State& state) {
+  const Particles& p = state.particles;
   const std::size_t n = order_.size();
   text_ =
       "<?xml version=\"1.0\"?>\n"
@@ -95,7 +125,7 @@ void TrajectoryWriter::write_vtp(const World& world) {
       "    <FieldData>\n"
       "      <DataArray type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\" "
       "format=\"ascii\">";
-  append_number(text_, world.time());
+  append_number(text_, state.time);
   text_ += "</DataArray>\n    </FieldData>\n    <Piece NumberOfPoints=\"";
   append_number(text_, n);
   text_ += "\" NumberOfVerts=\"";
@@ -140,13 +170,13 @@ void TrajectoryWriter::write_pvd() {
   write_file_atomic(dir_ / "trajectories.pvd", pvd);
 }
 
-void TrajectoryWriter::append_csv(const World& world) {
-  const Particles& p = world.particles();
-  const auto& materials = world.model().materials.materials();
+void TrajectoryWriter::append_csv(const State& state) {
+  const Particles& p = state.particles;
+  const auto& materials = sim_->model->materials.materials();
   text_.clear();
   CsvWriter row(text_);
   for (const std::size_t i : order_) {
-    row << world.time() << p.id[i] << p.position[i].x() << p.position[i].y() << p.position[i].z()
+    row << state.time << p.id[i] << p.position[i].x() << p.position[i].y() << p.position[i].z()
         << p.velocity[i].x() << p.velocity[i].y() << p.velocity[i].z()
         << p.scale[i] * shape_size_[std::size_t(p.shape[i])]
         << materials[std::size_t(p.material[i])].name;

@@ -11,28 +11,36 @@
 #include <string>
 #include <vector>
 
-#include "dynamics/world.hpp"
+#include "common/serial.hpp"
+#include "model/state.hpp"
 #include "output/files.hpp"
-#include "sim/simulation.hpp"
+#include "spec/simulation.hpp"
 
 namespace ces::output {
 
 class TrajectoryWriter {
  public:
   TrajectoryWriter(const std::filesystem::path& dir, const Simulation& sim,
-                   std::vector<double> shape_size);
+                   std::vector<double> shape_size, Start start = Start::Fresh);
 
-  // Writes a frame if one is due at world.time().
-  void observe(const World& world);
-  // Publishes trajectories.csv.
-  void commit();
+  // Writes a frame if one is due at state.time.
+  void observe(const State& state);
+  // trajectories.csv complete on the disk (the run's end).
+  void close();
   std::size_t frames() const { return frame_times_.size(); }
+  // The files written so far, relative to the output folder.
+  std::vector<std::string> files() const;
+
+  // The frames so far and trajectories.csv's length, for checkpoints; load()
+  // removes the frames written after the checkpoint and cuts the csv back.
+  void save(ByteWriter& out);
+  void load(ByteReader& in);
 
  private:
   void sort_by_id(const Particles& p);
-  void write_vtp(const World& world);
+  void write_vtp(const State& state);
   void write_pvd();
-  void append_csv(const World& world);
+  void append_csv(const State& state);
 
   std::filesystem::path dir_;
   const Simulation* sim_;
@@ -40,7 +48,7 @@ class TrajectoryWriter {
   double every_ = 0.0;
   std::uint64_t next_frame_ = 0;
   std::vector<double> frame_times_;
-  AtomicFile csv_;
+  AppendFile csv_;
   std::vector<std::size_t> order_;  // particle indices by id
   std::string text_;                // reused frame buffer
 };

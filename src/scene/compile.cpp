@@ -887,7 +887,7 @@ class Compiler {
     else if (entry)
       shape_sizes_.push_back(2.0 * shape.bounding_radius);
     else
-      shape_sizes_.push_back(name == "sphere" ? 1.0 : std::cbrt(6.0 * shape.volume / kPi));
+      shape_sizes_.push_back(name == "sphere" ? 1.0 : equal_volume_diameter(shape.volume));
     model_->shapes.push_back(shape);
     return int(model_->shapes.size()) - 1;
   }
@@ -1107,6 +1107,7 @@ class Compiler {
       sim_.output.trajectories = {0.0, false, false};
     }
     if (const Node* field = out.find("field")) read_field_picture(*field);
+    if (const Node* c = out.find("checkpoint")) sim_.output.checkpoint_every = c->at("every").number();
   }
 
   // More samples than this would make a field.csv of hundreds of MB.
@@ -1154,7 +1155,7 @@ class Compiler {
     p.max += Vec2::Constant(0.2 * r);
   }
 
-  // What the run has to build (DESIGN.md §1): absent sections cost nothing.
+  // What the run has to build (docs/architecture.md): absent sections cost nothing.
   void list_components() {
     const Model& m = *model_;
     const auto any_body = [&](BodyKind kind) {

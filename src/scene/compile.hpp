@@ -6,7 +6,7 @@
 #include <string>
 
 #include "scene/tree.hpp"
-#include "sim/simulation.hpp"
+#include "spec/simulation.hpp"
 
 namespace ces::scene {
 

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "scene/tree.hpp"
-#include "sim/simulation.hpp"
+#include "spec/simulation.hpp"
 
 namespace ces::scene {
 

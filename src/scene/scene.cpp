@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "common/hash.hpp"
 #include "scene/compile.hpp"
 #include "scene/diagnostics.hpp"
 #include "scene/resolve.hpp"
@@ -11,15 +12,9 @@
 namespace ces::scene {
 namespace {
 
-// FNV-1a, 64 bits: tiny, fully specified, the same on every platform.
 std::string fnv1a_hex(const std::string& text) {
-  std::uint64_t h = 0xcbf29ce484222325ull;
-  for (unsigned char c : text) {
-    h ^= c;
-    h *= 0x100000001b3ull;
-  }
   char hex[17];
-  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(fnv1a(text)));
   return hex;
 }
 

@@ -18,7 +18,7 @@
 #include <utility>
 #include <vector>
 
-#include "sim/simulation.hpp"
+#include "spec/simulation.hpp"
 
 namespace ces::scene {
 

@@ -1,6 +1,7 @@
 // The compiled, immutable description of a simulation: what a scene compiler
 // builds and the stepper reads. Nothing here knows about YAML or files.
 #pragma once
+#include <cmath>
 #include <limits>
 #include <optional>
 #include <string>
@@ -8,14 +9,15 @@
 
 #include "common/math.hpp"
 #include "geometry/shapes.hpp"
+#include "model/defaults.hpp"
 
 namespace ces {
 
 struct Material {
   std::string name;
   double density = 1000.0;     // kg/m^3
-  double friction = 0.3;       // Coulomb coefficient
-  double restitution = 0.0;    // normal coefficient of restitution
+  double friction = defaults::kMaterialFriction;        // Coulomb coefficient
+  double restitution = defaults::kMaterialRestitution;  // normal coefficient of restitution
 };
 
 // Explicit values for one pair of materials; unset fields fall back to the
@@ -63,6 +65,11 @@ struct ParticleShape {
 ParticleShape make_particle_shape(const std::vector<Vec3>& centers,
                                   const std::vector<double>& radii,
                                   Pose* frame = nullptr);
+
+// The sphere of a shape's volume V: radius (3V / 4π)^⅓ and diameter
+// (6V / π)^⅓, each computed as written (the two roundings differ).
+inline double equal_volume_radius(double volume) { return std::cbrt(3.0 * volume / (4.0 * kPi)); }
+inline double equal_volume_diameter(double volume) { return std::cbrt(6.0 * volume / kPi); }
 
 enum class BodyKind { Static, Kinematic, Dynamic };
 
@@ -124,18 +131,18 @@ enum class SolverMethod { APGD, SPG, PGS };
 
 struct SolverSettings {
   SolverMethod method = SolverMethod::APGD;
-  int max_iterations = 100;
-  double tolerance = 1e-6;          // residual (m/s), see dynamics/ccp.hpp
-  double pgs_relaxation = 1.0;      // over-relaxation for projected Gauss-Seidel
-  bool warm_start = true;
+  int max_iterations = defaults::kSolverMaxIterations;
+  double tolerance = defaults::kSolverTolerance;  // residual (m/s), see dynamics/ccp.hpp
+  double pgs_relaxation = defaults::kSolverRelaxation;  // over-relaxation for projected Gauss-Seidel
+  bool warm_start = defaults::kSolverWarmStart;
 };
 
 struct ContactSettings {
   // Pairs closer than envelope_fraction * (smaller radius) + |v_rel| * step
   // become contacts before they touch (the |v| h term stops tunnelling).
-  double envelope_fraction = 0.25;
-  double recovery_speed = 0.1;          // m/s: cap on the speed of pushing out overlaps
-  double restitution_threshold = 0.01;  // m/s: slower impacts are plastic
+  double envelope_fraction = defaults::kContactEnvelope;
+  double recovery_speed = defaults::kRecoverySpeed;  // m/s: cap on the speed of pushing out overlaps
+  double restitution_threshold = defaults::kRestitutionThreshold;  // m/s: slower impacts are plastic
 };
 
 // Contact law: DVI (impulses from the cone complementarity problem, the
@@ -144,8 +151,8 @@ struct ContactSettings {
 enum class ContactModel { DVI, DEM };
 
 struct ElasticProperties {
-  double youngs_modulus = 1e8;  // Pa; DEM codes soften real moduli to afford the step
-  double poisson_ratio = 0.3;
+  double youngs_modulus = defaults::kDemYoungsModulus;  // Pa; DEM codes soften real moduli to afford the step
+  double poisson_ratio = defaults::kDemPoissonRatio;
 };
 
 // Hertz-Mindlin settings. Elastic constants are per material (index as in
@@ -158,11 +165,15 @@ struct DemSettings {
   std::vector<ElasticProperties> materials;
   // e -> 0 needs unbounded damping, which no explicit step resolves: lower
   // restitutions (the material default is 0) are raised to this.
-  double min_restitution = 0.05;
+  double min_restitution = ces::defaults::kDemMinRestitution;
   const ElasticProperties& elastic(int material) const {
     return std::size_t(material) < materials.size() ? materials[std::size_t(material)] : defaults;
   }
 };
+
+struct Model;
+// Mass of a particle of `shape` at `scale` made of `material` (kg).
+double particle_mass(const Model& model, int shape, double scale, int material);
 
 struct Model {
   double step = 1e-3;  // s

@@ -1,10 +1,17 @@
-// Mutable simulation state, laid out for the hot loops: one array per field.
+// The state of a run, laid out for the hot loops: one array per field.
+// Everything that lives from one step to the next is here (or in a stage's
+// own record: a feed's random stream, the collectors' tallies), so a step
+// is a function of the state and the model.
 #pragma once
 #include <cstdint>
+#include <memory>
 #include <tuple>
 #include <vector>
 
 #include "common/math.hpp"
+#include "common/serial.hpp"
+#include "model/contact_memory.hpp"
+#include "model/model.hpp"
 
 namespace ces {
 
@@ -25,6 +32,9 @@ struct Particles {
   std::vector<Vec3> force;             // external, cleared every step
   std::vector<Vec3> torque;
   std::vector<double> charge;          // C; stays 0 unless a scene has electrodes
+  // C: a mixed particle's induced charge on its metal part (its insulating
+  // part's is `charge`); 0 for everything else.
+  std::vector<double> metal_charge;
 
   std::size_t size() const { return id.size(); }
   void push(std::uint64_t new_id, int shape_index, double size_scale, int material_index,
@@ -42,7 +52,7 @@ inline constexpr auto kParticleArrays = std::tuple{
     &Particles::id,       &Particles::shape,    &Particles::scale,       &Particles::material,
     &Particles::position, &Particles::orientation, &Particles::velocity, &Particles::angular_velocity,
     &Particles::mass,     &Particles::inv_mass, &Particles::inv_inertia, &Particles::force,
-    &Particles::torque,   &Particles::charge};
+    &Particles::torque,   &Particles::charge,   &Particles::metal_charge};
 
 // Machine bodies: the Model's rigid bodies, in the same order.
 struct Bodies {
@@ -52,5 +62,42 @@ struct Bodies {
   std::vector<Vec3> force;             // external, dynamic bodies only
   std::vector<Vec3> torque;
 };
+
+// Everything a step reads and writes, but the stages' scratch.
+struct State {
+  Particles particles;
+  Bodies bodies;
+  double time = 0.0;          // s
+  std::uint64_t steps = 0;    // steps taken
+  std::uint64_t next_id = 0;  // the id of the next particle added
+  // The warm start: last step's contact impulses as world vectors, by
+  // contact key, and its bilateral rows' impulses.
+  ContactMemory impulses;
+  std::vector<double> row_impulses;
+  // DEM: each contact's accumulated tangential displacement, by key.
+  ContactMemory springs;
+};
+
+// The whole state as bytes (checkpoints), and back: a state read back
+// steps on to the same bits as the one written.
+void save(ByteWriter& out, const State& state);
+void load(ByteReader& in, State& state);
+
+// The state at t = 0: the bodies at their initial pose and velocity, no
+// particles.
+void init_state(const Model& model, State& state);
+
+// Adds a particle with mass and inertia from its shape's volume and its
+// material's density; returns its id.
+std::uint64_t add_particle(const Model& model, State& state, int shape, double scale,
+                           int material, const Vec3& position,
+                           const Quat& orientation = Quat::Identity(),
+                           const Vec3& velocity = Vec3::Zero(),
+                           const Vec3& angular_velocity = Vec3::Zero());
+
+// Pose and velocity of a kinematic body at time t, in closed form.
+void prescribed_state(const RigidBody& body, double t, Pose& pose, Vec3& v, Vec3& w);
+// Every kinematic body at time t.
+void set_body_motion(const Model& model, double t, Bodies& bodies);
 
 }  // namespace ces

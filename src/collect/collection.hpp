@@ -1,18 +1,23 @@
-// Where particles leave a run: the post-step hook that collects particles
-// crossing collector planes, and removes those that left the domain or whose
-// state stopped being finite (lost, with the reason). Keeps the exact tallies
-// behind bins.csv, products.csv and the summary's balance.
+// Where particles leave a run: the collect stage, which takes out of the
+// state the particles that crossed a collector plane this step (collected)
+// and those that left the domain or whose state stopped being finite (lost,
+// with the reason). Keeps their records, in (time, id) order, and the exact
+// tallies behind bins.csv, products.csv and the summary's balance.
 #pragma once
 #include <array>
 #include <cstdint>
 #include <string_view>
 #include <vector>
 
-#include "dynamics/world.hpp"
-#include "output/tally.hpp"
-#include "sim/simulation.hpp"
+#include <optional>
 
-namespace ces::output {
+#include "collect/collector.hpp"
+#include "common/serial.hpp"
+#include "common/tally.hpp"
+#include "geometry/shapes.hpp"
+#include "model/state.hpp"
+
+namespace ces::collect {
 
 struct Crossing {
   std::uint64_t id = 0;
@@ -54,21 +59,27 @@ struct CollectorTallies {
 
 class Collection {
  public:
-  // shape_size[s]: the diameter of Model shape s at scale 1 (m).
-  Collection(const Simulation& sim, std::vector<double> shape_size);
+  // shape_size[s]: the diameter of Model shape s at scale 1 (m). Without a
+  // domain nothing is lost by leaving it.
+  Collection(std::vector<Collector> collectors, std::optional<geo::Aabb> domain,
+             std::size_t materials, std::vector<double> shape_size);
 
-  // The post-step hook.
-  void operator()(World& world);
+  // The stage, after the step that ended at t_end and took h: removes what
+  // it collects or loses from `particles`.
+  void collect(double t_end, double h, Particles& particles);
 
   double diameter(const Particles& p, std::size_t i) const;
   std::size_t material_count() const { return materials_; }
   const std::vector<CollectorTallies>& collectors() const { return tallies_; }
   const std::vector<Tally>& lost(LossReason r) const { return lost_[std::size_t(r)]; }
 
-  // Sorted by (time, id) after sort_records().
+  // In (time, id) order.
   const std::vector<Crossing>& crossings() const { return crossings_; }
   const std::vector<Loss>& losses() const { return losses_; }
-  void sort_records();
+
+  // The tallies and records, for checkpoints.
+  void save(ByteWriter& out) const;
+  void load(ByteReader& in);
 
  private:
   bool leaves(const Particles& p, std::size_t i, double t_end, double h);
@@ -76,7 +87,8 @@ class Collection {
   void lose(const Particles& p, std::size_t i, double t_end, LossReason reason);
   void tally_crossing(const Crossing& c);
 
-  const Simulation* sim_;
+  std::vector<Collector> collectors_;
+  std::optional<geo::Aabb> domain_;
   std::vector<double> shape_size_;
   std::size_t materials_;
   std::vector<Vec3> axes_;  // unit bin axis per collector
@@ -86,8 +98,9 @@ class Collection {
   std::vector<Loss> losses_;
 };
 
-// The diameter of each Model shape at scale 1: taken from the feeds'
-// components (shape_size), else twice the shape's bounding radius.
-std::vector<double> shape_sizes(const Simulation& sim);
+}  // namespace ces::collect
 
-}  // namespace ces::output
+namespace ces {
+template <> struct PlainBytes<collect::Crossing> : std::true_type {};
+template <> struct PlainBytes<collect::Loss> : std::true_type {};
+}  // namespace ces

@@ -1,8 +1,6 @@
-// The separator's force stages (PHYSICS.md §3): air drag, and charging plus
-// electric forces. Each registers with World::add_force_stage, so it runs
-// after this step's collision and before its solve: charges and forces come
-// from this step's positions and contacts, never the previous step's (the
-// public seed code lags them by one step).
+// Charging and electric forces: a force stage (sim/world.hpp runs it after
+// this step's collision and before its solve), so charges and forces come
+// from this step's positions and contacts, never the previous step's.
 //
 // Plain data in, a stage out: a scene compiler fills the specs. Frame as in
 // fields/electric.hpp: drum axis = z through the origin, gravity −y.
@@ -13,31 +11,19 @@
 // Forces act at the centre of mass (no torque). Every particle is updated by its own loop
 // iteration, so charges and forces are bitwise the same for any thread count.
 #pragma once
+#include <cstdint>
 #include <limits>
 #include <optional>
 #include <utility>
 #include <vector>
 
-#include "dynamics/world.hpp"
+#include "collision/contacts.hpp"
 #include "fields/charge.hpp"
 #include "fields/electric.hpp"
+#include "model/model.hpp"
+#include "model/state.hpp"
 
 namespace ces::fields {
-
-// ------------------------------------------------------------------ drag --
-
-enum class DragLaw { Stokes, SchillerNaumann };
-
-// Drag from the particle's velocity relative to still air (PHYSICS §3).
-struct DragSpec {
-  Air air;  // density and viscosity (its permittivity is not used here)
-  DragLaw law = DragLaw::SchillerNaumann;
-};
-
-// Throws std::invalid_argument for a non-positive viscosity or density.
-void add_drag_stage(World& world, DragSpec spec);
-
-// -------------------------------------------------------- electrostatics --
 
 // How a particle shape takes corona charge and is pinned to the drum by its
 // image charge, at scale 1 (lengths scale with Particles::scale, areas with
@@ -45,7 +31,7 @@ void add_drag_stage(World& world, DragSpec spec);
 //
 // Compact shapes (spheres, grains, rods, most clusters) use the sphere of
 // equal volume, r = (3V/4π)^⅓: Pauthenier's Q_s = 4π ε0 r² p E and the
-// image force Q² / (4π ε0 εr (2r)²) of a charge at the centre (PHYSICS §3).
+// image force Q² / (4π ε0 εr (2r)²) of a charge at the centre (docs/physics.md §5).
 //
 // Flat shapes (the built-in flake up to aspect 1/3; any cluster at least
 // three times as wide as thick both ways across its thinnest principal
@@ -84,7 +70,7 @@ inline constexpr double kNoDecay = std::numeric_limits<double>::infinity();
 // w = 1 a conductor (induced charge on the drum), w = 0 an insulator (corona
 // charge, decay, brush), in between a mixed particle (e.g. a PCB fragment)
 // that carries both charges and feels the w-weighted average of the two
-// forces (PHYSICS §3).
+// forces (docs/physics.md §5).
 struct ElectricalMaterial {
   double metal_fraction = 0.0;         // w in [0, 1]
   double relative_permittivity = 1.0;  // εr of the insulating part (Pauthenier)
@@ -116,11 +102,11 @@ struct CoronaZone {
   // |E| that charges the particle, V/m; unset: the field model's |E| at the
   // particle (the static-electrode field has no corona space charge).
   std::optional<double> field;
-  double current_density = 1e-4;  // J, A/m² (Pauthenier only)
+  double current_density = defaults::kCoronaCurrentDensity;  // J, A/m² (Pauthenier only)
   double ion_sign = -1.0;         // polarity of the corona ions: ±1
 };
 
-// Charging and electric forces (PHYSICS §3). Per particle and step:
+// Charging and electric forces (docs/physics.md §5). Per particle and step:
 //  - metal part: while touching the grounded drum, Q_c = (2/3)π³ ε0 εr r²
 //    E·n with n the contact normal out of the drum, and the lift force
 //    0.832 Q_c (E·n) n; off the drum, the last Q_c is kept and the force is
@@ -146,8 +132,8 @@ struct CoronaZone {
 //
 // Where the charges live: Particles::charge holds a conductor's induced
 // charge and an insulator's or mixed particle's insulating charge (a scene
-// may preset it). The metal part of a mixed particle keeps its induced
-// charge inside the stage.
+// may preset it); Particles::metal_charge the induced charge of a mixed
+// particle's metal part.
 struct ElectrostaticsSpec {
   // The field model has no default, so it is the one constructor argument.
   explicit ElectrostaticsSpec(ElectricField model) : field(std::move(model)) {}
@@ -161,8 +147,34 @@ struct ElectrostaticsSpec {
   double medium_relative_permittivity = Air{}.relative_permittivity;
 };
 
-// Throws std::invalid_argument naming the offending field when the spec does
-// not fit the world's model (body indices, material count, ranges).
-void add_electrostatics_stage(World& world, ElectrostaticsSpec spec);
+// Site of one particle for its charges this step (electrostatics.cpp).
+struct Site;
+
+// The stage: reads this step's contacts, the bodies' motion and the
+// particles' position, orientation, velocity, shape, scale and material;
+// writes their charge, metal_charge and force.
+class ElectrostaticsStage {
+ public:
+  // Throws std::invalid_argument naming the offending field when the spec
+  // does not fit the model (body indices, material count, ranges).
+  ElectrostaticsStage(ElectrostaticsSpec spec, const Model& model);
+  void apply(const Model& model, const Contacts& contacts, const Bodies& bodies,
+             Particles& particles);
+
+ private:
+  void find_touches(const Contacts& c, const Bodies& bodies, const Particles& p, double h);
+  const ElectricalMaterial& material(const Particles& p, std::size_t i) const;
+  Site site(const Particles& p, std::size_t i, const Contacts& c) const;
+  void update(Particles& p, std::size_t i, const Contacts& c, double h) const;
+  Vec3 metal_part(double& charge, const Site& at) const;
+  Vec3 insulating_part(double& charge, const ElectricalMaterial& m, const Site& at,
+                       double h) const;
+
+  ElectrostaticsSpec spec_;
+  std::vector<ShapeElectrics> shapes_;      // per Model shape
+  std::vector<std::int32_t> drum_contact_;  // per particle: touching drum contact, or -1
+  std::vector<std::int32_t> near_contact_;  // per particle: closest drum contact, or -1
+  std::vector<std::uint8_t> brush_touch_;   // per particle
+};
 
 }  // namespace ces::fields

@@ -1,4 +1,4 @@
-#include "dynamics/model.hpp"
+#include "model/model.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -100,9 +100,8 @@ class UnionIntegrator {
 
  private:
   // A cell's tests go over the spheres that reach its parent only, in
-  // index order (near_[depth + 1]): a flake's 19 spheres were all tested
-  // in every cell, and this integration took 0.75 s of each start of
-  // ces_pcb.yaml. A sphere dropped from the list is farther from the
+  // index order (near_[depth + 1]), not over all of a cluster's spheres in
+  // every cell. A sphere dropped from the list is farther from the
   // parent than its radius by a margin far above rounding, so it cannot
   // touch or contain any point of a child: the same cells are added in the
   // same order, to the bit.
@@ -197,6 +196,12 @@ ParticleShape make_particle_shape(const std::vector<Vec3>& centers, const std::v
   }
   if (frame) *frame = Pose{com, Quat(axes)};
   return s;
+}
+
+double particle_mass(const Model& model, int shape, double scale, int material) {
+  const ParticleShape& s = model.shapes.at(std::size_t(shape));
+  const double density = model.materials.materials().at(std::size_t(material)).density;
+  return density * s.volume * scale * scale * scale;
 }
 
 }  // namespace ces

@@ -1,4 +1,4 @@
-#include "fields/stages.hpp"
+#include "fields/electrostatics.hpp"
 
 #include <algorithm>
 #include <array>
@@ -25,23 +25,13 @@ void require(bool ok, const std::string& what) {
   if (!ok) throw std::invalid_argument(what);
 }
 
-// Radius of the sphere with each shape's volume, at scale 1.
-std::vector<double> unit_radii(const Model& model) {
-  std::vector<double> radii;
-  radii.reserve(model.shapes.size());
-  for (const ParticleShape& s : model.shapes)
-    radii.push_back(std::cbrt(3.0 * s.volume / (4.0 * kPi)));
-  return radii;
-}
-
 // Largest gap at which contact k (body first, particle i second) still
 // counts as touching its body. On a turning body a carried particle starts
 // each step off the surface by the chord sag ρ (ω h)² / 2 of its last step
 // (semi-implicit Euler moves it along a tangent; the solve pulls it back):
 // 3 µm at 60 rpm and 1 ms, 14 µm at 128 rpm. Twice that is allowed, on top
 // of the fraction of r. A particle SLIDING on the body rides higher: the
-// velocity-level cone complementarity (Anitescu–Tasora relaxation, DESIGN
-// §4) gives a sliding contact the normal velocity μ |v_t|, so it starts each
+// velocity-level cone complementarity (the relaxation of Anitescu and Tasora, 2010) gives a sliding contact the normal velocity μ |v_t|, so it starts each
 // step μ |v_t| h off the surface (50 µm for an FR-4 flake landing on the
 // drum 0.2 m/s faster than its surface, at μ = 0.5 and 0.5 ms: 17 % of its
 // spheres' radius), and a sliding conductor is still in contact with the
@@ -100,15 +90,11 @@ double union_area(const std::vector<std::array<double, 3>>& discs) {
   return double(std::count(covered.begin(), covered.end(), 1)) * du * dv;
 }
 
-double particle_radius(const Particles& p, std::size_t i, const std::vector<double>& unit) {
-  return p.scale[i] * unit[std::size_t(p.shape[i])];
-}
-
 }  // namespace
 
 ShapeElectrics shape_electrics(const ParticleShape& shape) {
   ShapeElectrics e;
-  e.radius = std::cbrt(3.0 * shape.volume / (4.0 * kPi));
+  e.radius = equal_volume_radius(shape.volume);
   e.charging_radius = e.radius;
   // Extent along each principal axis.
   Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);
@@ -138,13 +124,6 @@ ShapeElectrics shape_electrics(const ParticleShape& shape) {
 }
 
 namespace {
-
-// ------------------------------------------------------------------ drag --
-
-Vec3 drag_force(const DragSpec& spec, const Vec3& velocity, double radius) {
-  if (spec.law == DragLaw::Stokes) return stokes_drag(velocity, radius, spec.air);
-  return schiller_naumann_drag(velocity, radius, spec.air);
-}
 
 // ---------------------------------------------------------------- corona --
 
@@ -222,7 +201,14 @@ void validate(const ElectrostaticsSpec& spec, const Model& model) {
     require(*grid != nullptr, "electrostatics: the grid field is missing");
 }
 
-// ---------------------------------------------------------------- stage --
+// A flat flake lies on the drum with its face when its face normal is
+// within the shape's tilt of the contact normal (either face down).
+bool lies_flat(const ShapeElectrics& shape, const Quat& orientation, const Vec3* normal) {
+  if (shape.face_area <= 0.0 || !normal) return false;
+  return std::abs((orientation * shape.face_normal).dot(*normal)) >= shape.flat_cos;
+}
+
+}  // namespace
 
 // Where one particle is this step, as far as its charges are concerned.
 struct Site {
@@ -238,199 +224,125 @@ struct Site {
   double face_area;         // a flat flake lying flat over the drum: A; else 0
 };
 
-class ElectrostaticsStage {
- public:
-  ElectrostaticsStage(ElectrostaticsSpec spec, std::vector<ShapeElectrics> shapes)
-      : spec_(std::move(spec)), shapes_(std::move(shapes)) {
-    has_mixed_ = std::any_of(spec_.materials.begin(), spec_.materials.end(),
-                             [](const ElectricalMaterial& m) { return is_mixed(m); });
-  }
-
-  void operator()(World& world, const Contacts& contacts) {
-    Particles& p = world.particles();
-    const double h = world.model().step;
-    find_touches(contacts, world.bodies(), p, h);
-    load_mixed(p);
-    const auto n = std::ptrdiff_t(p.size());
-#pragma omp parallel for schedule(static) if (std::ptrdiff_t(p.size()) > kParallelMin)
-    for (std::ptrdiff_t s = 0; s < n; ++s) update(p, std::size_t(s), contacts, h);
-    store_mixed(p);
-  }
-
- private:
-  static bool is_mixed(const ElectricalMaterial& m) {
-    return m.metal_fraction > 0.0 && m.metal_fraction < 1.0;
-  }
-
-  // This step's touches, from the contact list (body contacts name the body
-  // first and point their normal out of it). A cluster touching the drum
-  // with several spheres uses its closest contact. Also the closest drum
-  // contact in the list whether touching or not (within the collision
-  // envelope: a quarter of the sphere radius plus one step's travel), for
-  // the image force, which does not stop when a particle hops off by a
-  // fraction of a millimetre.
-  void find_touches(const Contacts& c, const Bodies& bodies, const Particles& p, double h) {
-    const std::size_t np = p.size();
-    drum_contact_.assign(np, -1);
-    near_contact_.assign(np, -1);
-    brush_touch_.assign(np, 0);
-    const int drum = int(np) + spec_.drum_body;
-    const int brush = spec_.brush_body ? int(np) + *spec_.brush_body : -1;
-    for (std::size_t k = 0; k < c.size(); ++k) {
-      const int body = c.body_a[k];
-      if (body != drum && body != brush) continue;
-      const auto i = std::size_t(c.body_b[k]);
-      if (body == drum) {
-        std::int32_t& near = near_contact_[i];
-        if (near < 0 || c.gap[k] < c.gap[std::size_t(near)]) near = std::int32_t(k);
-      }
-      if (c.gap[k] > touch_tolerance(c, k, bodies, std::size_t(body) - np, p, i, h)) continue;
-      if (body == brush) {
-        brush_touch_[i] = 1;
-        continue;
-      }
-      std::int32_t& best = drum_contact_[i];
-      if (best < 0 || c.gap[k] < c.gap[std::size_t(best)]) best = std::int32_t(k);
-    }
-  }
-
-  // Mixed particles' metal charges, carried between steps by particle id:
-  // indices change when particles are removed.
-  void load_mixed(const Particles& p) {
-    if (!has_mixed_) return;
-    metal_charge_.assign(p.size(), 0.0);
-    const auto n = std::ptrdiff_t(p.size());
-#pragma omp parallel for schedule(static) if (std::ptrdiff_t(p.size()) > kParallelMin)
-    for (std::ptrdiff_t s = 0; s < n; ++s) {
-      const auto i = std::size_t(s);
-      if (!is_mixed(material(p, i))) continue;
-      const auto it = std::lower_bound(
-          mixed_by_id_.begin(), mixed_by_id_.end(), p.id[i],
-          [](const std::pair<std::uint64_t, double>& e, std::uint64_t id) { return e.first < id; });
-      if (it != mixed_by_id_.end() && it->first == p.id[i]) metal_charge_[i] = it->second;
-    }
-  }
-
-  void store_mixed(const Particles& p) {
-    if (!has_mixed_) return;
-    mixed_by_id_.clear();
-    for (std::size_t i = 0; i < p.size(); ++i)
-      if (is_mixed(material(p, i))) mixed_by_id_.emplace_back(p.id[i], metal_charge_[i]);
-    std::sort(mixed_by_id_.begin(), mixed_by_id_.end());  // ids are unique
-  }
-
-  const ElectricalMaterial& material(const Particles& p, std::size_t i) const {
-    return spec_.materials[std::size_t(p.material[i])];
-  }
-
-  Site site(const Particles& p, std::size_t i, const Contacts& c) const {
-    const Vec3& x = p.position[i];
-    const bool active = std::abs(x.z()) <= spec_.drum.half_width;
-    const std::int32_t k = drum_contact_[i], kn = near_contact_[i];
-    const Vec3* near = kn >= 0 ? &c.normal[std::size_t(kn)] : nullptr;
-    const ShapeElectrics& shape = shapes_[std::size_t(p.shape[i])];
-    const double s = p.scale[i];
-    return {x,
-            active ? field_at(spec_.field, x) : Vec3::Zero(),
-            active,
-            k >= 0 ? &c.normal[std::size_t(k)] : nullptr,
-            near,
-            kn >= 0 ? std::max(0.0, c.gap[std::size_t(kn)]) : 0.0,
-            brush_touch_[i] != 0,
-            s * shape.radius,
-            s * shape.charging_radius,
-            lies_flat(shape, p.orientation[i], near) ? s * s * shape.face_area : 0.0};
-  }
-
-  // A flat flake lies on the drum with its face when its face normal is
-  // within the shape's tilt of the contact normal (either face down).
-  static bool lies_flat(const ShapeElectrics& shape, const Quat& orientation, const Vec3* normal) {
-    if (shape.face_area <= 0.0 || !normal) return false;
-    return std::abs((orientation * shape.face_normal).dot(*normal)) >= shape.flat_cos;
-  }
-
-  // One particle: both parts' charges for this step, then the w-weighted
-  // sum of their forces (PHYSICS §3).
-  void update(Particles& p, std::size_t i, const Contacts& c, double h) {
-    const ElectricalMaterial& m = material(p, i);
-    const Site at = site(p, i, c);
-    const double w = m.metal_fraction;
-    Vec3 force = Vec3::Zero();
-    if (w > 0.0) force += w * metal_part(w < 1.0 ? metal_charge_[i] : p.charge[i], at);
-    if (w < 1.0) force += (1.0 - w) * insulating_part(p.charge[i], m, at, h);
-    if (at.active) p.force[i] += force;
-  }
-
-  // Conductor: on the grounded drum its charge follows the local field
-  // (relaxation ~1e-19 s) and it feels the lift force of a sphere on a
-  // plane; off the drum the charge is frozen and the force is Q E.
-  Vec3 metal_part(double& charge, const Site& at) const {
-    if (!at.drum_normal) return charge * at.field;
-    const Vec3& n = *at.drum_normal;
-    const double en = at.field.dot(n);
-    charge = conductor_induced_charge(at.radius, en, spec_.medium_relative_permittivity);
-    return conductor_lift_force(charge, en) * n;
-  }
-
-  // Insulator: relaxes, charges under the corona, loses everything at the
-  // brush; Q E plus, on the drum, the pull of its image charge.
-  Vec3 insulating_part(double& charge, const ElectricalMaterial& m, const Site& at,
-                       double h) const {
-    if (m.decay_time > 0.0 && std::isfinite(m.decay_time))
-      charge = decay_step(charge, m.decay_time, h);
-    if (at.active) {
-      for (const CoronaZone& zone : spec_.corona) {
-        if (in_zone(zone, spec_.drum.radius, at.position))
-          charge = corona_step(charge, at.charging_radius, m.relative_permittivity, zone,
-                               at.field.norm(), h);
-      }
-    }
-    if (at.brush) charge = 0.0;
-    Vec3 force = charge * at.field;
-    if (at.near_normal) {
-      // At the gap of the closest sphere: a flake lying flat by the
-      // bridged face law, anything else by the sphere law with its charge
-      // r + gap from the drum.
-      const double eps = spec_.medium_relative_permittivity;
-      const double pull = at.face_area > 0.0
-                              ? flat_image_force(charge, at.face_area, eps, at.near_gap)
-                              : image_force(charge, at.radius + at.near_gap, eps);
-      force -= pull * *at.near_normal;
-    }
-    return force;
-  }
-
-  ElectrostaticsSpec spec_;
-  std::vector<ShapeElectrics> shapes_;  // per Model shape
-  bool has_mixed_ = false;
-  std::vector<std::int32_t> drum_contact_;  // per particle: touching drum contact, or -1
-  std::vector<std::int32_t> near_contact_;  // per particle: closest drum contact, or -1
-  std::vector<std::uint8_t> brush_touch_;   // per particle
-  std::vector<double> metal_charge_;        // per particle, mixed materials only
-  std::vector<std::pair<std::uint64_t, double>> mixed_by_id_;  // between steps, sorted
-};
-
-}  // namespace
-
-void add_drag_stage(World& world, DragSpec spec) {
-  require(spec.air.viscosity > 0.0 && spec.air.density > 0.0,
-          "drag: air viscosity and density must be positive");
-  world.add_force_stage([spec, unit = unit_radii(world.model())](World& w, const Contacts&) {
-    Particles& p = w.particles();
-    const auto n = std::ptrdiff_t(p.size());
-#pragma omp parallel for schedule(static) if (std::ptrdiff_t(p.size()) > kParallelMin)
-    for (std::ptrdiff_t s = 0; s < n; ++s) {
-      const auto i = std::size_t(s);
-      p.force[i] += drag_force(spec, p.velocity[i], particle_radius(p, i, unit));
-    }
-  });
+ElectrostaticsStage::ElectrostaticsStage(ElectrostaticsSpec spec, const Model& model)
+    : spec_(std::move(spec)) {
+  validate(spec_, model);
+  for (const ParticleShape& s : model.shapes) shapes_.push_back(shape_electrics(s));
 }
 
-void add_electrostatics_stage(World& world, ElectrostaticsSpec spec) {
-  validate(spec, world.model());
-  std::vector<ShapeElectrics> shapes;
-  for (const ParticleShape& s : world.model().shapes) shapes.push_back(shape_electrics(s));
-  world.add_force_stage(ElectrostaticsStage(std::move(spec), std::move(shapes)));
+void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
+                                const Bodies& bodies, Particles& p) {
+  const double h = model.step;
+  find_touches(contacts, bodies, p, h);
+  const auto n = std::ptrdiff_t(p.size());
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < n; ++s) update(p, std::size_t(s), contacts, h);
+}
+
+// This step's touches, from the contact list (body contacts name the body
+// first and point their normal out of it). A cluster touching the drum
+// with several spheres uses its closest contact. Also the closest drum
+// contact in the list whether touching or not (within the collision
+// envelope: a quarter of the sphere radius plus one step's travel), for
+// the image force, which does not stop when a particle hops off by a
+// fraction of a millimetre.
+void ElectrostaticsStage::find_touches(const Contacts& c, const Bodies& bodies, const Particles& p, double h) {
+  const std::size_t np = p.size();
+  drum_contact_.assign(np, -1);
+  near_contact_.assign(np, -1);
+  brush_touch_.assign(np, 0);
+  const int drum = int(np) + spec_.drum_body;
+  const int brush = spec_.brush_body ? int(np) + *spec_.brush_body : -1;
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    const int body = c.body_a[k];
+    if (body != drum && body != brush) continue;
+    const auto i = std::size_t(c.body_b[k]);
+    if (body == drum) {
+      std::int32_t& near = near_contact_[i];
+      if (near < 0 || c.gap[k] < c.gap[std::size_t(near)]) near = std::int32_t(k);
+    }
+    if (c.gap[k] > touch_tolerance(c, k, bodies, std::size_t(body) - np, p, i, h)) continue;
+    if (body == brush) {
+      brush_touch_[i] = 1;
+      continue;
+    }
+    std::int32_t& best = drum_contact_[i];
+    if (best < 0 || c.gap[k] < c.gap[std::size_t(best)]) best = std::int32_t(k);
+  }
+}
+
+const ElectricalMaterial& ElectrostaticsStage::material(const Particles& p, std::size_t i) const {
+  return spec_.materials[std::size_t(p.material[i])];
+}
+
+Site ElectrostaticsStage::site(const Particles& p, std::size_t i, const Contacts& c) const {
+  const Vec3& x = p.position[i];
+  const bool active = std::abs(x.z()) <= spec_.drum.half_width;
+  const std::int32_t k = drum_contact_[i], kn = near_contact_[i];
+  const Vec3* near = kn >= 0 ? &c.normal[std::size_t(kn)] : nullptr;
+  const ShapeElectrics& shape = shapes_[std::size_t(p.shape[i])];
+  const double s = p.scale[i];
+  return {x,
+          active ? field_at(spec_.field, x) : Vec3::Zero(),
+          active,
+          k >= 0 ? &c.normal[std::size_t(k)] : nullptr,
+          near,
+          kn >= 0 ? std::max(0.0, c.gap[std::size_t(kn)]) : 0.0,
+          brush_touch_[i] != 0,
+          s * shape.radius,
+          s * shape.charging_radius,
+          lies_flat(shape, p.orientation[i], near) ? s * s * shape.face_area : 0.0};
+}
+
+// One particle: both parts' charges for this step, then the w-weighted
+// sum of their forces (docs/physics.md §5).
+void ElectrostaticsStage::update(Particles& p, std::size_t i, const Contacts& c, double h) const {
+  const ElectricalMaterial& m = material(p, i);
+  const Site at = site(p, i, c);
+  const double w = m.metal_fraction;
+  Vec3 force = Vec3::Zero();
+  if (w > 0.0) force += w * metal_part(w < 1.0 ? p.metal_charge[i] : p.charge[i], at);
+  if (w < 1.0) force += (1.0 - w) * insulating_part(p.charge[i], m, at, h);
+  if (at.active) p.force[i] += force;
+}
+
+// Conductor: on the grounded drum its charge follows the local field
+// (relaxation ~1e-19 s) and it feels the lift force of a sphere on a
+// plane; off the drum the charge is frozen and the force is Q E.
+Vec3 ElectrostaticsStage::metal_part(double& charge, const Site& at) const {
+  if (!at.drum_normal) return charge * at.field;
+  const Vec3& n = *at.drum_normal;
+  const double en = at.field.dot(n);
+  charge = conductor_induced_charge(at.radius, en, spec_.medium_relative_permittivity);
+  return conductor_lift_force(charge, en) * n;
+}
+
+// Insulator: relaxes, charges under the corona, loses everything at the
+// brush; Q E plus, on the drum, the pull of its image charge.
+Vec3 ElectrostaticsStage::insulating_part(double& charge, const ElectricalMaterial& m, const Site& at,
+                     double h) const {
+  if (m.decay_time > 0.0 && std::isfinite(m.decay_time))
+    charge = decay_step(charge, m.decay_time, h);
+  if (at.active) {
+    for (const CoronaZone& zone : spec_.corona) {
+      if (in_zone(zone, spec_.drum.radius, at.position))
+        charge = corona_step(charge, at.charging_radius, m.relative_permittivity, zone,
+                             at.field.norm(), h);
+    }
+  }
+  if (at.brush) charge = 0.0;
+  Vec3 force = charge * at.field;
+  if (at.near_normal) {
+    // At the gap of the closest sphere: a flake lying flat by the
+    // bridged face law, anything else by the sphere law with its charge
+    // r + gap from the drum.
+    const double eps = spec_.medium_relative_permittivity;
+    const double pull = at.face_area > 0.0
+                            ? flat_image_force(charge, at.face_area, eps, at.near_gap)
+                            : image_force(charge, at.radius + at.near_gap, eps);
+    force -= pull * *at.near_normal;
+  }
+  return force;
 }
 
 }  // namespace ces::fields

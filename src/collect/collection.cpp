@@ -1,8 +1,8 @@
-#include "output/collection.hpp"
+#include "collect/collection.hpp"
 
 #include <algorithm>
 
-namespace ces::output {
+namespace ces::collect {
 namespace {
 
 bool finite_state(const Particles& p, std::size_t i) {
@@ -14,11 +14,17 @@ bool contains(const geo::Aabb& box, const Vec3& x) {
   return (x.array() >= box.min.array()).all() && (x.array() <= box.max.array()).all();
 }
 
+// Sorts the records from `first` on (this step's) by (time, id) and merges
+// them into the sorted ones before: the whole list stays in that order.
 template <class Record>
-void sort_by_time_and_id(std::vector<Record>& records) {
-  std::sort(records.begin(), records.end(), [](const Record& a, const Record& b) {
+void merge_by_time_and_id(std::vector<Record>& records, std::size_t first) {
+  auto before = [](const Record& a, const Record& b) {
     return a.time != b.time ? a.time < b.time : a.id < b.id;
-  });
+  };
+  const auto mid = records.begin() + std::ptrdiff_t(first);
+  std::sort(mid, records.end(), before);
+  if (mid != records.begin() && mid != records.end() && before(*mid, *(mid - 1)))
+    std::inplace_merge(records.begin(), mid, records.end(), before);
 }
 
 // Bin index of `along`, or -1 outside [from, to).
@@ -39,22 +45,13 @@ std::string_view to_string(LossReason r) {
   return r == LossReason::LeftDomain ? "left domain" : "non-finite state";
 }
 
-std::vector<double> shape_sizes(const Simulation& sim) {
-  const std::vector<ParticleShape>& shapes = sim.model->shapes;
-  std::vector<double> size(shapes.size(), 0.0);
-  for (const Feed& f : sim.feeds)
-    for (const FeedComponent& c : f.mix)
-      if (size.at(std::size_t(c.shape)) == 0.0) size[std::size_t(c.shape)] = c.shape_size;
-  for (std::size_t s = 0; s < shapes.size(); ++s)
-    if (size[s] == 0.0) size[s] = 2.0 * shapes[s].bounding_radius;
-  return size;
-}
-
-Collection::Collection(const Simulation& sim, std::vector<double> shape_size)
-    : sim_(&sim),
+Collection::Collection(std::vector<Collector> collectors, std::optional<geo::Aabb> domain,
+                       std::size_t materials, std::vector<double> shape_size)
+    : collectors_(std::move(collectors)),
+      domain_(domain),
       shape_size_(std::move(shape_size)),
-      materials_(sim.model->materials.materials().size()) {
-  for (const Collector& c : sim.collectors) {
+      materials_(materials) {
+  for (const Collector& c : collectors_) {
     axes_.push_back(c.axis.normalized());
     CollectorTallies t;
     t.bins.resize(std::size_t(c.bins) * materials_);
@@ -70,12 +67,13 @@ double Collection::diameter(const Particles& p, std::size_t i) const {
   return p.scale[i] * shape_size_[std::size_t(p.shape[i])];
 }
 
-void Collection::operator()(World& world) {
-  Particles& p = world.particles();
-  const double h = world.model().step, t_end = world.time();
+void Collection::collect(double t_end, double h, Particles& p) {
+  const std::size_t crossed = crossings_.size(), lost = losses_.size();
   // Backwards: swap_remove moves the last particle, already visited, into i.
   for (std::size_t i = p.size(); i-- > 0;)
-    if (leaves(p, i, t_end, h)) world.remove_particle(i);
+    if (leaves(p, i, t_end, h)) p.swap_remove(i);
+  merge_by_time_and_id(crossings_, crossed);
+  merge_by_time_and_id(losses_, lost);
 }
 
 bool Collection::leaves(const Particles& p, std::size_t i, double t_end, double h) {
@@ -84,7 +82,7 @@ bool Collection::leaves(const Particles& p, std::size_t i, double t_end, double 
     return true;
   }
   if (try_collect(p, i, t_end, h)) return true;
-  if (sim_->domain && !contains(*sim_->domain, p.position[i])) {
+  if (domain_ && !contains(*domain_, p.position[i])) {
     lose(p, i, t_end, LossReason::LeftDomain);
     return true;
   }
@@ -99,8 +97,8 @@ bool Collection::try_collect(const Particles& p, std::size_t i, double t_end, do
   const Vec3 x0 = x1 - travel;
   int hit = -1;
   double hit_fraction = 2.0;
-  for (std::size_t k = 0; k < sim_->collectors.size(); ++k) {
-    const Collector& c = sim_->collectors[k];
+  for (std::size_t k = 0; k < collectors_.size(); ++k) {
+    const Collector& c = collectors_[k];
     const double d0 = c.normal.dot(x0 - c.point), d1 = c.normal.dot(x1 - c.point);
     if (!(d0 > 0.0 && d1 <= 0.0)) continue;
     const double fraction = d0 / (d0 - d1);
@@ -110,7 +108,7 @@ bool Collection::try_collect(const Particles& p, std::size_t i, double t_end, do
     }
   }
   if (hit < 0) return false;
-  const Collector& c = sim_->collectors[std::size_t(hit)];
+  const Collector& c = collectors_[std::size_t(hit)];
   Crossing k;
   k.id = p.id[i];
   k.time = t_end - (1.0 - hit_fraction) * h;
@@ -155,9 +153,24 @@ void Collection::lose(const Particles& p, std::size_t i, double t_end, LossReaso
   losses_.push_back(l);
 }
 
-void Collection::sort_records() {
-  sort_by_time_and_id(crossings_);
-  sort_by_time_and_id(losses_);
+void Collection::save(ByteWriter& out) const {
+  for (const CollectorTallies& t : tallies_)
+    for (const auto* v : {&t.bins, &t.products, &t.outside, &t.total}) out.values(*v);
+  for (const std::vector<Tally>& l : lost_) out.values(l);
+  out.values(crossings_);
+  out.values(losses_);
 }
 
-}  // namespace ces::output
+void Collection::load(ByteReader& in) {
+  for (CollectorTallies& t : tallies_)
+    for (auto* v : {&t.bins, &t.products, &t.outside, &t.total}) {
+      const std::size_t expected = v->size();
+      in.values(*v);
+      if (v->size() != expected) throw CorruptData("a collector's bins or products have changed");
+    }
+  for (std::vector<Tally>& l : lost_) in.values(l);
+  in.values(crossings_);
+  in.values(losses_);
+}
+
+}  // namespace ces::collect

@@ -10,7 +10,7 @@
 #include <cmath>
 #include <cstdint>
 
-namespace ces::output {
+namespace ces {
 
 __extension__ typedef unsigned __int128 MassUnits;
 
@@ -38,4 +38,4 @@ struct Tally {
 
 inline Tally operator+(Tally a, const Tally& b) { return a += b; }
 
-}  // namespace ces::output
+}  // namespace ces

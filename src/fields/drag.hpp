@@ -1,0 +1,37 @@
+// Air drag on the particles, from each particle's velocity relative to
+// still air: a force stage (sim/world.hpp runs it after this step's
+// collision and before its solve). A sphere cluster feels the drag of its
+// equal-volume sphere, r = scale (3V/4π)^⅓, at its centre of mass. Every
+// particle is updated by its own loop iteration, so forces are bitwise the
+// same for any thread count.
+#pragma once
+#include <vector>
+
+#include "fields/charge.hpp"
+#include "model/model.hpp"
+#include "model/state.hpp"
+
+namespace ces::fields {
+
+enum class DragLaw { Stokes, SchillerNaumann };
+
+// Drag from the particle's velocity relative to still air (docs/physics.md §6).
+struct DragSpec {
+  Air air;  // density and viscosity (its permittivity is not used here)
+  DragLaw law = DragLaw::SchillerNaumann;
+};
+
+// Adds each particle's drag to its force (the forces stage). Reads the
+// particles' velocity, shape and scale; writes their force.
+class DragStage {
+ public:
+  // Throws std::invalid_argument for a non-positive viscosity or density.
+  DragStage(DragSpec spec, const Model& model);
+  void apply(Particles& particles) const;
+
+ private:
+  DragSpec spec_;
+  std::vector<double> unit_radius_;  // per shape: the equal-volume sphere's radius at scale 1
+};
+
+}  // namespace ces::fields

@@ -1,0 +1,154 @@
+#include "model/state.hpp"
+
+namespace ces {
+
+void Particles::push(std::uint64_t new_id, int shape_index, double size_scale,
+                     int material_index, double m, const Vec3& inertia, const Vec3& x,
+                     const Quat& q, const Vec3& v, const Vec3& w) {
+  id.push_back(new_id);
+  shape.push_back(shape_index);
+  scale.push_back(size_scale);
+  material.push_back(material_index);
+  position.push_back(x);
+  orientation.push_back(q.normalized());
+  velocity.push_back(v);
+  angular_velocity.push_back(w);
+  mass.push_back(m);
+  inv_mass.push_back(1.0 / m);
+  inv_inertia.push_back(inertia.cwiseInverse());
+  force.push_back(Vec3::Zero());
+  torque.push_back(Vec3::Zero());
+  charge.push_back(0.0);
+  metal_charge.push_back(0.0);
+}
+
+namespace {
+template <class F>
+void for_each_array(Particles& p, F&& f) {
+  std::apply([&](auto... member) { (f(p.*member), ...); }, kParticleArrays);
+}
+}  // namespace
+
+void Particles::swap_remove(std::size_t i) {
+  for_each_array(*this, [i](auto& v) {
+    v[i] = v.back();
+    v.pop_back();
+  });
+}
+
+void Particles::reserve(std::size_t n) {
+  for_each_array(*this, [n](auto& v) { v.reserve(n); });
+}
+
+void Particles::permute(const std::vector<std::uint32_t>& order, Particles& scratch) {
+  std::apply(
+      [&](auto... member) {
+        auto gather = [&](auto& from, auto& to) {
+          to.resize(order.size());
+          for (std::size_t j = 0; j < order.size(); ++j) to[j] = from[order[j]];
+          from.swap(to);
+        };
+        (gather(this->*member, scratch.*member), ...);
+      },
+      kParticleArrays);
+}
+
+namespace {
+
+void save(ByteWriter& out, const ContactMemory& m) {
+  out.values(m.keys());
+  out.values(m.values());
+}
+
+void load(ByteReader& in, ContactMemory& m) {
+  std::vector<ContactKey> keys;
+  std::vector<Vec3> values;
+  in.values(keys);
+  in.values(values);
+  if (keys.size() != values.size()) throw CorruptData("a contact memory's keys and values differ");
+  m.assign(keys, values);
+}
+
+}  // namespace
+
+void save(ByteWriter& out, const State& s) {
+  std::apply([&](auto... member) { (out.values(s.particles.*member), ...); }, kParticleArrays);
+  const Bodies& b = s.bodies;
+  for (const auto* v : {&b.velocity, &b.angular_velocity, &b.force, &b.torque}) out.values(*v);
+  out.values(b.pose);
+  out.value(s.time);
+  out.value(s.steps);
+  out.value(s.next_id);
+  save(out, s.impulses);
+  out.values(s.row_impulses);
+  save(out, s.springs);
+}
+
+void load(ByteReader& in, State& s) {
+  std::apply([&](auto... member) { (in.values(s.particles.*member), ...); }, kParticleArrays);
+  const std::size_t n = s.particles.size();
+  std::apply([&](auto... member) {
+    if ((((s.particles.*member).size() != n) || ...))
+      throw CorruptData("the particle arrays differ in length");
+  }, kParticleArrays);
+  Bodies& b = s.bodies;
+  for (auto* v : {&b.velocity, &b.angular_velocity, &b.force, &b.torque}) in.values(*v);
+  in.values(b.pose);
+  in.value(s.time);
+  in.value(s.steps);
+  in.value(s.next_id);
+  load(in, s.impulses);
+  in.values(s.row_impulses);
+  load(in, s.springs);
+}
+
+void init_state(const Model& model, State& state) {
+  const std::size_t nb = model.bodies.size();
+  Bodies& b = state.bodies;
+  b.pose.resize(nb);
+  b.velocity.resize(nb);
+  b.angular_velocity.resize(nb);
+  b.force.assign(nb, Vec3::Zero());
+  b.torque.assign(nb, Vec3::Zero());
+  for (std::size_t i = 0; i < nb; ++i) {
+    const RigidBody& body = model.bodies[i];
+    const bool dynamic = body.kind == BodyKind::Dynamic;
+    b.pose[i] = body.pose;
+    b.velocity[i] = dynamic ? body.velocity : Vec3::Zero();
+    b.angular_velocity[i] = dynamic ? body.angular_velocity : Vec3::Zero();
+  }
+  set_body_motion(model, 0.0, b);
+}
+
+std::uint64_t add_particle(const Model& model, State& state, int shape, double scale,
+                           int material, const Vec3& position, const Quat& orientation,
+                           const Vec3& velocity, const Vec3& angular_velocity) {
+  const ParticleShape& s = model.shapes[std::size_t(shape)];
+  const double mass = particle_mass(model, shape, scale, material);
+  const Vec3 inertia = mass * scale * scale * s.unit_inertia;
+  const std::uint64_t id = state.next_id++;
+  state.particles.push(id, shape, scale, material, mass, inertia, position, orientation,
+                       velocity, angular_velocity);
+  return id;
+}
+
+void prescribed_state(const RigidBody& b, double t, Pose& pose, Vec3& v, Vec3& w) {
+  const PrescribedMotion& m = b.motion;
+  const Vec3 axis = m.axis.normalized();
+  const Quat turn(Eigen::AngleAxisd(m.angular_speed * t, axis));
+  const Vec3 centre = m.center + m.linear_velocity * t;
+  pose.position = centre + turn * (b.pose.position - m.center);
+  pose.orientation = turn * b.pose.orientation;
+  w = m.angular_speed * axis;
+  v = m.linear_velocity + w.cross(pose.position - centre);
+}
+
+void set_body_motion(const Model& model, double t, Bodies& bodies) {
+  for (std::size_t i = 0; i < model.bodies.size(); ++i) {
+    const RigidBody& b = model.bodies[i];
+    if (b.kind == BodyKind::Kinematic)
+      prescribed_state(b, t, bodies.pose[i], bodies.velocity[i], bodies.angular_velocity[i]);
+  }
+}
+
+}  // namespace ces
