@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "dynamics/isa.hpp"
 #include "output/compare.hpp"
 #include "output/files.hpp"
 #include "scene/scene.hpp"
@@ -274,7 +275,9 @@ int dispatch(const CLI::App& app, const CLI::App* validate_cmd, const CLI::App* 
 int main(int argc, char** argv) {
   Args args;
   CLI::App app{"ces-sim: granular flow in corona electrostatic separators (DVI multibody)"};
-  app.set_version_flag("--version", std::string("ces-sim ") + CES_VERSION);
+  app.set_version_flag("--version", [] {
+    return std::string("ces-sim ") + CES_VERSION + "\nsolver kernel: " + ces::kernel_description();
+  });
   app.footer(kExitCodes);
   app.add_option("scene", args.scene, "Scene file (.yaml or .json)");
   app.add_option("-o,--out", args.out_dir, "Output folder (default: the scene's output.dir)");
@@ -320,6 +323,12 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? kSuccess : kBadInput;
+  }
+  try {
+    ces::kernel_isa();  // here, not in the first step: a bad CES_KERNEL is an input error
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "ces-sim: %s\n", e.what());
+    return kBadInput;
   }
   if (study_cmd->parsed()) return study(args, study_args);
   return dispatch(app, validate_cmd, schema_cmd, compare_cmd, resume_cmd, args);

@@ -130,6 +130,45 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
              [&](std::int32_t i) { return B.inv_mass[std::size_t(i)] > 0.0; });
 }
 
+namespace {
+
+// f.template operator()<I>() for the kernel's instruction set I.
+template <class F>
+decltype(auto) on_kernel(F&& f) {
+  switch (kernel_isa()) {
+    case Isa::Avx512: return f.template operator()<Isa::Avx512>();
+    case Isa::Avx2: return f.template operator()<Isa::Avx2>();
+    default: return f.template operator()<Isa::Baseline>();
+  }
+}
+
+}  // namespace
+
+void CcpProblem::scatter_bodies(const double* P, ConstSpan x, bool add_free,
+                                std::vector<Vec3>& dv, std::vector<Vec3>& dw) const {
+  on_kernel([&]<Isa I>() { scatter_bodies_on<I>(P, x, add_free, dv, dw); });
+}
+
+CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx,
+                                            ConstSpan g_old, Momentum mo, double step) const {
+  return on_kernel([&]<Isa I>() { return apgd_step_on<I>(x, x_old, x1, gx, g_old, mo, step); });
+}
+
+CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x,
+                                                ConstSpan x_old, Momentum mo, TrialSums& t,
+                                                const NextTrial& next) const {
+  return on_kernel(
+      [&]<Isa I>() { return apgd_gradient_on<I>(x1, g1, x, x_old, mo, t, next); });
+}
+
+CcpProblem::TrialSums& CcpProblem::TrialSums::operator+=(const TrialSums& o) {
+  dd += o.dd;
+  dnd += o.dnd;
+  uphill += o.uphill;
+  res_sum += o.res_sum;
+  return *this;
+}
+
 void CcpProblem::scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
                          std::vector<Vec3>& dw) const {
   to_world(x, Span(impulse_.data(), x.size()));

@@ -13,7 +13,7 @@
 // through fixed chunks added in chunk order, for the same reason.
 //
 // APGD, the default, runs on a kernel of its own (apgd_step, apgd_gradient;
-// kernel.cpp): one pass over the contacts per iteration instead of five
+// kernel.inl, built for each instruction set: isa.hpp): one pass over the contacts per iteration instead of five
 // (two after a rejected trial), four contacts to a SIMD vector, on world
 // rows (a contact's impulse as a world vector), so it needs only the normal
 // of a contact's frame. This file and ccp.cpp hold the problem and its
@@ -42,6 +42,7 @@
 #include "common/math.hpp"
 #include "common/parallel.hpp"
 #include "dynamics/adjacency.hpp"
+#include "dynamics/isa.hpp"
 #include "model/model.hpp"
 #include "model/stats.hpp"
 
@@ -149,7 +150,7 @@ class CcpProblem {
   void warm_start(const std::vector<ContactKey>& keys, const ContactMemory& previous,
                   ConstSpan prev_rows, Span x) const;
 
-  // APGD runs on world rows (kernel.cpp): a contact's three rows are its
+  // APGD runs on world rows (kernel.inl): a contact's three rows are its
   // impulse as a world vector, n x_n + t1 x_t1 + t2 x_t2, and its gradient
   // J v + b n; bilateral rows as they are. The frame is orthonormal, so
   // norms, dot products and the residual are the same. to_world and
@@ -165,7 +166,7 @@ class CcpProblem {
   // v's rows times the square roots of their metric weights.
   void scale_by_metric(Span v) const;
 
-  // APGD's iteration (kernel.cpp) in one streaming pass over the contacts
+  // APGD's iteration (kernel.inl) in one streaming pass over the contacts
   // (and one over the bodies), four contacts to a SIMD vector, on world
   // rows: apgd_gradient makes the next trial as it goes, and apgd_step
   // makes a trial alone at the start and after a rejected one. x, x1 have
@@ -260,6 +261,18 @@ class CcpProblem {
   void scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
   void scatter_bodies(const double* P, ConstSpan x, bool add_free, std::vector<Vec3>& dv,
                       std::vector<Vec3>& dw) const;
+  // The kernel's three functions as kernel.inl builds them for one
+  // instruction set (explicit instantiations in kernel_*.cpp); the ones
+  // above call those of kernel_isa().
+  template <Isa I>
+  TrialSums apgd_step_on(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx, ConstSpan g_old,
+                         Momentum momentum, double step) const;
+  template <Isa I>
+  TrialSums apgd_gradient_on(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_old,
+                             Momentum momentum, TrialSums& t, const NextTrial& next) const;
+  template <Isa I>
+  void scatter_bodies_on(const double* P, ConstSpan x, bool add_free, std::vector<Vec3>& dv,
+                         std::vector<Vec3>& dw) const;
   // dv, dw += M^-1 J^T x over x's bilateral rows.
   void add_row_impulses(ConstSpan x, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
   void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, Span y) const;

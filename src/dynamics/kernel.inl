@@ -1,8 +1,11 @@
 // The APGD kernel (CcpProblem::apgd_step, apgd_gradient and the bodies'
 // pass, scatter_bodies): four contacts to a vector (GCC/Clang vector
-// extensions; AVX when the build enables it, two SSE2 halves otherwise).
-// The only file built beyond baseline x86-64 (CMakeLists.txt). Lane l
-// holds contact 4 b + l of block b.
+// extensions; one AVX instruction each where the instruction set has it,
+// two SSE2 halves otherwise). kernel_baseline.cpp, kernel_avx2.cpp and
+// kernel_avx512.cpp each include it once, with CES_KERNEL_ISA naming their
+// instruction set; the code below runs beyond baseline x86-64 only in
+// those (isa.hpp chooses among them). Lane l holds contact 4 b + l of
+// block b.
 //
 // It runs on world rows: a contact's three rows hold its impulse as a world
 // vector P = n x_n + t1 x_t1 + t2 x_t2, and its gradient is the relative
@@ -32,15 +35,28 @@
 
 namespace ces {
 
-// On a machine with AVX-512VL (CMakeLists.txt) the kernel below is
-// compiled for it: the same 256-bit vectors and the same arithmetic to the
-// bit, but 32 registers where AVX2 has 16, so a block's lanes stay out of
-// the stack. After the includes: Eigen's headers under -mavx512f demand FMA.
-#if defined(CES_KERNEL_AVX512)
-#pragma GCC push_options
-#pragma GCC target("avx512f,avx512vl,prefer-vector-width=256")
+// After the includes, so that the headers' inline functions (shared by
+// the three builds) stay baseline x86-64. AVX-512VL gives the same 256-bit
+// vectors and the same arithmetic to the bit, but 32 registers where AVX2
+// has 16, so a block's lanes stay out of the stack. Not FMA: a fused
+// multiply-add rounds once where the baseline build rounds twice.
+#if !defined(CES_KERNEL_ISA)
+#error "kernel.inl is included by kernel_*.cpp, which define CES_KERNEL_ISA"
 #endif
-namespace {
+#pragma GCC push_options
+#if CES_KERNEL_ISA == 2
+#pragma GCC target("avx512f,avx512vl,avx2,prefer-vector-width=256")
+#define CES_KERNEL_NAMESPACE kernel_avx512
+#elif CES_KERNEL_ISA == 1
+#pragma GCC target("avx2")
+#define CES_KERNEL_NAMESPACE kernel_avx2
+#else
+#define CES_KERNEL_NAMESPACE kernel_baseline
+#endif
+// The helpers' own namespace for each build (kernel_baseline, kernel_avx2,
+// kernel_avx512): the three builds' helpers differ, and the instantiations
+// below, which have external linkage, use their types.
+namespace CES_KERNEL_NAMESPACE {
 
 using d4 = double __attribute__((vector_size(32)));
 using f4 = float __attribute__((vector_size(16)));
@@ -330,10 +346,13 @@ void trial_row(double x, double x_old, double gx, double g_old, CcpProblem::Mome
   sums.uphill += gy * (x1 - x);
 }
 
-}  // namespace
+}  // namespace CES_KERNEL_NAMESPACE
 
-void CcpProblem::scatter_bodies(const double* P, ConstSpan x, bool add_free,
-                                std::vector<Vec3>& dv, std::vector<Vec3>& dw) const {
+using namespace CES_KERNEL_NAMESPACE;
+
+template <Isa I>
+void CcpProblem::scatter_bodies_on(const double* P, ConstSpan x, bool add_free,
+                                   std::vector<Vec3>& dv, std::vector<Vec3>& dw) const {
   const SolverBodies& B = *bodies_;
   const auto nb = std::ptrdiff_t(B.inv_mass.size());
   // At least a velocity per body; the kernel's own (dv_, dw_) have a spare
@@ -388,16 +407,9 @@ void CcpProblem::scatter_bodies(const double* P, ConstSpan x, bool add_free,
   add_row_impulses(x, dv, dw);
 }
 
-CcpProblem::TrialSums& CcpProblem::TrialSums::operator+=(const TrialSums& o) {
-  dd += o.dd;
-  dnd += o.dnd;
-  uphill += o.uphill;
-  res_sum += o.res_sum;
-  return *this;
-}
-
-CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx,
-                                            ConstSpan g_old, Momentum mo, double step) const {
+template <Isa I>
+CcpProblem::TrialSums CcpProblem::apgd_step_on(ConstSpan x, ConstSpan x_old, Span x1, ConstSpan gx,
+                                               ConstSpan g_old, Momentum mo, double step) const {
   static_assert(kLanes == kVec);
   const std::size_t nc = a_.size();
   const bool old = mo.cb != 0.0;
@@ -423,10 +435,11 @@ CcpProblem::TrialSums CcpProblem::apgd_step(ConstSpan x, ConstSpan x_old, Span x
   return total;
 }
 
-CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan x,
-                                                ConstSpan x_old, Momentum mo, TrialSums& t,
-                                                const NextTrial& next) const {
-  scatter_bodies(x1.data(), x1, true, dv_, dw_);
+template <Isa I>
+CcpProblem::TrialSums CcpProblem::apgd_gradient_on(ConstSpan x1, Span g1, ConstSpan x,
+                                                   ConstSpan x_old, Momentum mo, TrialSums& t,
+                                                   const NextTrial& next) const {
+  scatter_bodies_on<I>(x1.data(), x1, true, dv_, dw_);
   const double inv_s = diag_max_, s_res = 1.0 / inv_s;  // the residual's step
   const bool old = mo.cb != 0.0, ahead = !next.x2.empty(), ahead_old = next.momentum.cb != 0.0;
   const std::size_t nc = a_.size();
@@ -498,8 +511,16 @@ CcpProblem::TrialSums CcpProblem::apgd_gradient(ConstSpan x1, Span g1, ConstSpan
   return t_next;
 }
 
-#if defined(CES_KERNEL_AVX512)
+constexpr Isa kIsa = static_cast<Isa>(CES_KERNEL_ISA);
+template void CcpProblem::scatter_bodies_on<kIsa>(const double*, ConstSpan, bool,
+                                                  std::vector<Vec3>&, std::vector<Vec3>&) const;
+template CcpProblem::TrialSums CcpProblem::apgd_step_on<kIsa>(ConstSpan, ConstSpan, Span,
+                                                              ConstSpan, ConstSpan, Momentum,
+                                                              double) const;
+template CcpProblem::TrialSums CcpProblem::apgd_gradient_on<kIsa>(ConstSpan, Span, ConstSpan,
+                                                                  ConstSpan, Momentum, TrialSums&,
+                                                                  const NextTrial&) const;
+
 #pragma GCC pop_options
-#endif
 
 }  // namespace ces
