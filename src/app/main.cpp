@@ -312,7 +312,8 @@ int main(int argc, char** argv) {
       "resume", "Continue an unfinished run from its checkpoint (scenes with output.checkpoint)");
   resume_cmd->add_option("dir", args.dir_a, "The run's output folder (it holds partial/)")
       ->required();
-  resume_cmd->add_option("--threads", args.threads, "Worker threads")->check(CLI::PositiveNumber);
+  resume_cmd->add_option("--threads", args.threads, "Worker threads (1 to 1024)")
+      ->check(CLI::Range(1, 1024));
   resume_cmd->add_flag("-q,--quiet", args.quiet, "No progress line and no end-of-run report");
 
   StudyArgs study_args;
