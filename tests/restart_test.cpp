@@ -102,6 +102,8 @@ TEST(Restart, KilledAtARandomMomentResumesToTheSameBytes) {
     EXPECT_EQ(read_text(e.path()), read_text(killed / "trajectories" / name)) << name;
   }
   EXPECT_GE(frames, 40u);
+  EXPECT_EQ(test::report_data(whole / "report.html")["frames"],
+            test::report_data(killed / "report.html")["frames"]);
   EXPECT_FALSE(fs::exists(killed / "partial"));
 }
 

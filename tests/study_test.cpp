@@ -119,7 +119,12 @@ TEST(Study, ErrorsShrinkWithTheStepAndTheReferenceIsExact) {
     EXPECT_LT(error, previous) << "case " << k;
     previous = error;
   }
-  EXPECT_NE(test::read_text(dir / "study.svg").find("<polyline"), std::string::npos);
+  const std::string svg = test::read_text(dir / "study.svg");
+  EXPECT_NE(svg.find("<polyline"), std::string::npos);
+  EXPECT_NE(svg.find(">2ms</text>"), std::string::npos) << "each point labelled with its step";
+  const std::string report = test::read_text(dir / "report.html");
+  EXPECT_NE(report.find("<a href=\"case_2/report.html\">"), std::string::npos);
+  EXPECT_TRUE(test::fs::exists(dir / "case_2" / "report.html"));
 }
 
 // --list-cases: one line per case, K then its --set list; --case K runs that

@@ -52,6 +52,15 @@ Outcome ces_sim(const std::string& args) {
   return o;
 }
 
+nlohmann::json report_data(const fs::path& report) {
+  const std::string page = read_text(report);
+  const std::string open = "<script type=\"application/json\" id=\"data\">";
+  const std::size_t begin = page.find(open);
+  if (begin == std::string::npos) return nullptr;
+  const std::size_t start = begin + open.size();
+  return nlohmann::json::parse(page.substr(start, page.find("</script>", start) - start));
+}
+
 RigidBody ground_plane(const Vec3& normal, int material) {
   RigidBody b;
   b.name = "ground";

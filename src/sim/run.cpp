@@ -11,6 +11,8 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <memory>
 
 #include "common/clock.hpp"
@@ -19,6 +21,7 @@
 #include "output/field_picture.hpp"
 #include "output/files.hpp"
 #include "output/format.hpp"
+#include "output/report.hpp"
 #include "output/step_log.hpp"
 #include "output/summary.hpp"
 #include "output/tables.hpp"
@@ -98,7 +101,8 @@ class Observers : public StepObserver {
         steps_(sim.output.steps_csv ? dir / "steps.csv" : fs::path(),
                sim.model->solver.max_iterations, start),
         trajectories_(dir, sim, shape_sizes(sim), start),
-        energy_(sim, world.state()) {}
+        energy_(sim, world.state()),
+        section_(sim) {}
 
   void after(Stage stage, const World& world) override { energy_.after(stage, world.state()); }
 
@@ -111,9 +115,13 @@ class Observers : public StepObserver {
     }
     steps_.record(s);
     trajectories_.observe(world.state());
+    section_.observe(world.state());
   }
 
-  void start(const World& world) { trajectories_.observe(world.state()); }  // the frame at t = 0
+  void start(const World& world) {  // the frames at t = 0
+    trajectories_.observe(world.state());
+    section_.observe(world.state());
+  }
   void close() {
     steps_.close();
     trajectories_.close();
@@ -122,12 +130,14 @@ class Observers : public StepObserver {
     steps_.save(out);
     trajectories_.save(out);
     energy_.save(out);
+    section_.save(out);
     out.value(rayleigh_warned_);
   }
   void load(ByteReader& in) {
     steps_.load(in);
     trajectories_.load(in);
     energy_.load(in);
+    section_.load(in);
     in.value(rayleigh_warned_);
   }
   // Written as the run goes, relative to its folder.
@@ -139,12 +149,14 @@ class Observers : public StepObserver {
   output::SolverSummary solver() const { return steps_.summary(); }
   const output::EnergyBalance& energy() const { return energy_.balance(); }
   std::size_t frames() const { return trajectories_.frames(); }
+  const output::CrossSection& section() const { return section_; }
 
  private:
   const Simulation& sim_;
   output::StepLog steps_;
   output::TrajectoryWriter trajectories_;
   output::EnergyLedger energy_;
+  output::CrossSection section_;
   bool rayleigh_warned_ = false;
 };
 
@@ -166,6 +178,7 @@ class Runner {
   void checkpoint();
   void write_outputs();
   void write_summary(const output::RunRecord& r);
+  void write_report(const output::RunRecord& r, const std::string& distribution_svg);
   std::vector<std::string> files() const;
   output::RunRecord record() const;
   void tally_feeds(output::RunRecord& r) const;
@@ -283,8 +296,8 @@ void Runner::checkpoint() {
 }
 
 std::vector<std::string> Runner::files() const {
-  std::vector<std::string> out = {"summary.json", "bins.csv", "products.csv", "crossings.csv",
-                                  "lost.csv"};
+  std::vector<std::string> out = {"summary.json", "report.html", "bins.csv", "products.csv",
+                                  "crossings.csv", "lost.csv"};
   if (!sim_.resolved_yaml.empty()) out.push_back("scene.resolved.yaml");
   if (sim_.output.distribution_svg) out.push_back("distribution.svg");
   if (sim_.output.field && sim_.electrostatics) out.insert(out.end(), {"field.csv", "field.svg"});
@@ -298,6 +311,11 @@ std::vector<std::string> Runner::files() const {
 void Runner::write_outputs() {
   const auto t0 = Clock::now();
   output::RunRecord r = record();
+  auto failed = [&](const std::exception& e) {
+    complete_ = r.complete = false;
+    reason_ = r.reason = std::string("cannot write the outputs: ") + e.what();
+  };
+  std::string distribution;
   try {
     const collect::Collection& c = *world_.collection();
     output::write_file_atomic(dir_ / "bins.csv", output::bins_csv(sim_, c, r.materials));
@@ -305,17 +323,22 @@ void Runner::write_outputs() {
                               output::products_csv(sim_, r.products, r.materials));
     output::write_file_atomic(dir_ / "crossings.csv", output::crossings_csv(sim_, c));
     output::write_file_atomic(dir_ / "lost.csv", output::lost_csv(sim_, c));
-    if (sim_.output.distribution_svg)
-      output::write_file_atomic(dir_ / "distribution.svg",
-                                output::distribution_svg(sim_, c, r.materials));
+    if (sim_.output.distribution_svg) {
+      distribution = output::distribution_svg(sim_, c, r.materials);
+      output::write_file_atomic(dir_ / "distribution.svg", distribution);
+    }
     observers_.close();
   } catch (const std::exception& e) {
-    complete_ = r.complete = false;
-    reason_ = r.reason = std::string("cannot write the outputs: ") + e.what();
+    failed(e);
   }
   r.solver.seconds[Stage::Output] += seconds_since(t0);
   r.wall = seconds_since(start_);
   output::add_warnings(r);
+  try {
+    write_report(r, distribution);
+  } catch (const std::exception& e) {
+    failed(e);
+  }
   write_summary(r);
   if (complete_) {
     try {
@@ -327,6 +350,17 @@ void Runner::write_outputs() {
     }
   }
   if (!options_.quiet) output::print_report(r, stdout);
+}
+
+// report.html, from what summary.json will say but its last figures (the
+// output stage's time, written after the report).
+void Runner::write_report(const output::RunRecord& r, const std::string& distribution_svg) {
+  std::string field_svg;
+  if (std::ifstream in{dir_ / "field.svg", std::ios::binary})
+    field_svg.assign(std::istreambuf_iterator<char>(in), {});
+  output::write_file_atomic(dir_ / "report.html",
+                            output::report_html(sim_, output::summary_json(r), distribution_svg,
+                                                field_svg, observers_.section()));
 }
 
 // summary.json, last: "complete" is on disk only once everything else is.

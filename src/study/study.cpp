@@ -18,6 +18,7 @@
 #include "output/compare.hpp"
 #include "output/files.hpp"
 #include "output/format.hpp"
+#include "output/report_page.hpp"
 #include "model/model.hpp"
 #include "scene/scene.hpp"
 
@@ -236,6 +237,14 @@ std::string series(const Row& r) {
   return !label.empty() ? label : dem ? "dem" : r.method;
 }
 
+// What varies along a series' line: the case's step and iteration cap.
+std::string point_label(const Row& r) {
+  std::string label;
+  for (const auto& [k, v] : r.c.sets)
+    if (k == "time.step" || k == "solver.max_iterations") label += (label.empty() ? "" : " ") + v;
+  return !label.empty() ? label : "case " + std::to_string(r.c.index);
+}
+
 std::string xml_escaped(const std::string& s) {
   std::string out;
   for (const char c : s) out += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : std::string(1, c);
@@ -282,12 +291,17 @@ void axes_svg(const Frame& f, std::ostringstream& out) {
 }  // namespace
 
 std::string study_svg(const std::vector<Row>& rows) {
-  std::map<std::string, std::vector<std::pair<double, double>>> lines;  // series -> (wall, error)
+  struct Point {
+    double wall, error;
+    std::string label;
+    bool operator<(const Point& o) const { return wall < o.wall; }
+  };
+  std::map<std::string, std::vector<Point>> lines;  // by series
   double wmin = 1e300, wmax = 0, emin = 1e300, emax = 0;
   for (const Row& r : rows) {
     const double e = r.errors.w1_max_mm;
     if (!r.complete || r.wall_s <= 0 || !(e > 0) || std::isinf(e)) continue;  // no log of 0
-    lines[series(r)].emplace_back(r.wall_s, e);
+    lines[series(r)].push_back({r.wall_s, e, point_label(r)});
     wmin = std::min(wmin, r.wall_s), wmax = std::max(wmax, r.wall_s);
     emin = std::min(emin, e), emax = std::max(emax, e);
   }
@@ -306,11 +320,12 @@ std::string study_svg(const std::vector<Row>& rows) {
     std::sort(points.begin(), points.end());
     const char* colour = colours[n % 6];
     out << "<polyline fill='none' stroke='" << colour << "' points='";
-    for (const auto& [w, e] : points) out << f.px(w) << "," << f.py(e) << " ";
+    for (const Point& p : points) out << f.px(p.wall) << "," << f.py(p.error) << " ";
     out << "'/>\n";
-    for (const auto& [w, e] : points)
-      out << "<circle cx='" << f.px(w) << "' cy='" << f.py(e) << "' r='3' fill='" << colour
-          << "'/>\n";
+    for (const Point& p : points)
+      out << "<circle cx='" << f.px(p.wall) << "' cy='" << f.py(p.error) << "' r='3' fill='"
+          << colour << "'/><text x='" << f.px(p.wall) + 5 << "' y='" << f.py(p.error) - 5
+          << "' font-size='10' fill='" << colour << "'>" << xml_escaped(p.label) << "</text>\n";
     const double ly = f.top + 10 + 18 * n++;
     out << "<line x1='515' y1='" << ly << "' x2='535' y2='" << ly << "' stroke='" << colour
         << "' stroke-width='2'/><text x='540' y='" << ly + 4 << "'>" << xml_escaped(name) << "</text>\n";
@@ -475,6 +490,22 @@ std::string study_table(const std::vector<Axis>& axes, const std::vector<Row>& r
   return out;
 }
 
+std::string study_report(const std::vector<Case>& cases, const fs::path& reference,
+                         const std::string& table, const std::string& svg) {
+  std::string links;
+  for (const Case& c : cases) {
+    const std::string k = std::to_string(c.index);
+    links += "<a href=\"case_" + k + "/report.html\">case " + k + "</a> ";
+  }
+  return "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+         "<title>ces-sim study</title>\n<style>body { font: 14px Helvetica, Arial, sans-serif; "
+         "margin: 24px auto; max-width: 980px; } img { max-width: 100%; }</style>\n</head>\n"
+         "<body data-rendered=\"ok\">\n<h1>Study</h1>\n<p>reference: " +
+         xml_escaped(reference.string()) + "</p>\n<img alt=\"work-precision\" "
+         "src=\"data:image/svg+xml;base64," + output::base64(svg) + "\">\n<pre>" +
+         xml_escaped(table) + "</pre>\n<p>each case's report: " + links + "</p>\n</body>\n</html>\n";
+}
+
 Scheduler parse_scheduler(const std::string& name) {
   if (name == "local") return Scheduler::Local;
   if (name == "parallel") return Scheduler::Parallel;
@@ -532,8 +563,10 @@ int run(const Options& o) {
   std::vector<Row> rows;
   for (const Case& c : cases) rows.push_back(read_row(o, c, reference));
   output::write_file_atomic(o.out_dir / "study.csv", study_csv(o.axes, rows));
-  output::write_file_atomic(o.out_dir / "study.svg", study_svg(rows));
-  std::printf("reference: %s\n%s", reference.c_str(), study_table(o.axes, rows).c_str());
+  const std::string svg = study_svg(rows), table = study_table(o.axes, rows);
+  output::write_file_atomic(o.out_dir / "study.svg", svg);
+  output::write_file_atomic(o.out_dir / "report.html", study_report(cases, reference, table, svg));
+  std::printf("reference: %s\n%s", reference.c_str(), table.c_str());
   return ok ? 0 : 3;
 }
 

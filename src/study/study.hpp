@@ -99,6 +99,10 @@ struct Row {
 std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& rows);
 std::string study_svg(const std::vector<Row>& rows);
 std::string study_table(const std::vector<Axis>& axes, const std::vector<Row>& rows);
+// DIR/report.html: the work-precision plot, the table and a link to each
+// case's own report.
+std::string study_report(const std::vector<Case>& cases, const std::filesystem::path& reference,
+                         const std::string& table, const std::string& svg);
 
 // One line per case: "K  --set a=1 --set b=2".
 std::string list_cases(const Options& o);

@@ -1,0 +1,26 @@
+#!/bin/sh
+# A run's report.html in headless Chromium: the page's script must run to its
+# end (it marks <body> data-rendered="ok"; window.onerror marks data-error)
+# with nothing on the console, and a screenshot is kept as the test's
+# artefact. Usage: report_in_browser.sh CES_SIM SCENE ARTEFACT_DIR
+set -eu
+sim=$1 scene=$2 artefacts=$3
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+"$sim" "$scene" --set time.end=0.3s -q -o "$tmp/run"
+browser=$(command -v chromium || command -v chromium-browser || command -v google-chrome) ||
+  { echo "no Chromium on the PATH (.ci/setup installs Debian's chromium)"; exit 1; }
+open_page() {
+  "$browser" --headless --no-sandbox --disable-gpu --user-data-dir="$tmp/profile" \
+    --enable-logging=stderr --v=0 --virtual-time-budget=5000 "$@" "file://$tmp/run/report.html"
+}
+open_page --dump-dom > "$tmp/dom.html" 2> "$tmp/console.log"
+if ! grep -q 'data-rendered="ok"' "$tmp/dom.html" || grep -q 'data-error=' "$tmp/dom.html"; then
+  echo "report.html did not render:"; grep -o 'data-error="[^"]*"' "$tmp/dom.html" || true
+  exit 1
+fi
+if grep ':CONSOLE(' "$tmp/console.log"; then echo "report.html wrote to the console"; exit 1; fi
+mkdir -p "$artefacts"
+open_page --window-size=1000,2600 --screenshot="$artefacts/report.png" > /dev/null 2>&1
+test -s "$artefacts/report.png"
+echo "rendered; screenshot: $artefacts/report.png"
