@@ -18,7 +18,7 @@ for name in "${runs[@]}"; do
     friction_1) scene=scenes/stress/friction.yaml
                 sets=(--set materials.grain.friction=1 --set materials.steel.friction=1) ;;
   esac
-  "$bin" "$scene" -o "$out/$name" --threads 1 --quiet "${sets[@]}"
+  "$bin" "$scene" -o "$out/$name" --threads 1 --quiet --include-path scenes "${sets[@]}"
   python3 - "$out/$name/summary.json" "$name" <<'PY'
 import json, sys
 j = json.load(open(sys.argv[1])); s = j["solver"]; e = j["energy"]; b = j["balance"]

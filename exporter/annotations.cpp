@@ -298,7 +298,8 @@ std::optional<Node> parse_file(const std::string& path, Diagnostics& diags) {
   }
   std::ostringstream text;
   text << in.rdbuf();
-  auto root = scene::parse(text.str(), path, false, diags);
+  scene::Budget budget;
+  auto root = scene::parse(text.str(), path, false, budget, diags);
   if (root && !root->is_map()) {
     diags.error({path, 1, 1}, "",
                 "got " + scene::describe(*root) + ", expected a mapping with parts");

@@ -61,6 +61,7 @@ Cad read_cad(const std::string& input, const Annotations& a) {
 std::set<std::string> included_keys(const Annotations& a) {
   std::set<std::string> keys;
   scene::Diagnostics diags;
+  scene::Budget budget;
   for (const Node* inc : a.includes) {
     const fs::path p = fs::path(a.path).parent_path() / inc->string();
     std::error_code ec;
@@ -68,11 +69,26 @@ std::set<std::string> included_keys(const Annotations& a) {
       diags.error(inc->mark, "include", "cannot read '" + p.string() + "': no such file");
       continue;
     }
-    if (const auto tree = scene::load_tree(p.string(), diags))
+    if (const auto tree = scene::load_tree(p.string(), {}, budget, diags))
       for (const scene::Entry& e : tree->entries) keys.insert(e.key);
   }
   if (!diags.empty()) diags.raise();
   return keys;
+}
+
+// The folders of the annotations' includes: the scene includes them where
+// they are, so ces-sim must be told it may read them (--include-path).
+std::vector<std::string> include_folders(const Annotations& a, std::vector<std::string>& warnings) {
+  std::set<std::string> folders;
+  for (const Node* inc : a.includes) {
+    std::error_code ec;
+    const fs::path p = fs::absolute(fs::path(a.path).parent_path() / inc->string(), ec);
+    folders.insert(fs::weakly_canonical(p, ec).parent_path().string());
+  }
+  for (const std::string& f : folders)
+    warnings.push_back("the scene includes fragments from " + f + ": run it with --include-path " +
+                       f);
+  return {folders.begin(), folders.end()};
 }
 
 // ------------------------------------------------------------------ the folder
@@ -157,7 +173,8 @@ std::vector<scene::Diagnostic> map_back(std::vector<scene::Diagnostic> found,
                                         const std::string& written_path, const std::string& text,
                                         const Node& built) {
   scene::Diagnostics unused;
-  const auto parsed = scene::parse(text, written_path, false, unused);
+  scene::Budget budget;
+  const auto parsed = scene::parse(text, written_path, false, budget, unused);
   std::map<int, Mark> lines;
   if (parsed) index_lines(*parsed, built, lines);
   for (scene::Diagnostic& d : found) {
@@ -338,6 +355,7 @@ struct Summary {
   const Machine& machine;
   const Simulation& sim;
   const std::set<std::string>& made;  // top-level keys ces-export wrote itself
+  const std::vector<std::string>& include_paths;  // the folders its includes come from
 };
 
 void print_parts(std::ostream& out, const Machine& m) {
@@ -383,7 +401,9 @@ void print_summary(std::ostream& out, const Summary& s) {
   if (s.sim.feeds.empty()) out << "feed:       none (no feed_outlet part, no feeds key)\n";
   if (s.sim.collectors.empty())
     out << "collector:  none (no collector_plane part, no collectors key)\n";
-  out << "next:       ces-sim " << scene.string() << "\n";
+  out << "next:       ces-sim " << scene.string();
+  for (const std::string& folder : s.include_paths) out << " --include-path " << folder;
+  out << "\n";
 }
 
 // ------------------------------------------------------------------ pipeline
@@ -419,6 +439,8 @@ void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
   for (const char* key : {"gravity", "domain"})
     if (!a.root->find(key) && !setup.included_keys.count(key)) made.insert(key);
   const Node root = build_scene(m, a, setup, warnings);
+  scene::LoadOptions check;
+  check.include_paths = include_folders(a, warnings);
   const std::string text = scene_header(o) + scene::to_yaml(root);
 
   const TempFolder temp(sibling(folder, "tmp"));
@@ -433,7 +455,7 @@ void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
   write_text(temp.path() / "export_report.json", report_json(o, units, m, warnings).dump(2) + "\n");
   Simulation sim;
   try {
-    sim = scene::load(written);
+    sim = scene::load(written, check);
   } catch (const scene::SceneError& e) {
     auto found = map_back(e.diagnostics(), written, text, root);
     if (made.count("domain")) note_domain(found, default_domain(m));
@@ -441,7 +463,7 @@ void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
   }
   publish(temp.path(), folder);
   for (const std::string& w : warnings) err << "warning: " << w << "\n";
-  if (!o.quiet) print_summary(out, {o, a, units, m, sim, made});
+  if (!o.quiet) print_summary(out, {o, a, units, m, sim, made, check.include_paths});
 }
 
 }  // namespace

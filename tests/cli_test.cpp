@@ -174,7 +174,70 @@ TEST(Cli, BadArgumentsExitTwo) {
   EXPECT_EQ(ces_sim("").code, 2);
   EXPECT_EQ(ces_sim("--no-such-option " + scene("tiny.yaml")).code, 2);
   EXPECT_EQ(ces_sim(scene("tiny.yaml") + " --set nonsense").code, 2);
+  EXPECT_EQ(ces_sim(scene("tiny.yaml") + " --threads 100000").code, 2);
   EXPECT_EQ(ces_sim("compare /nonexistent/a /nonexistent/b").code, 2);
+}
+
+// Scenes past a bound are refused before anything runs: by validate and
+// by a run alike, exit 2, one line per problem, no output folder made.
+TEST(Cli, HostileScenesAreRefusedByValidateAndByRun) {
+  const fs::path bad = fs::path(CES_TEST_DIR) / "bad_scenes";
+  const std::pair<const char*, const char*> cases[] = {
+      {"too_many_steps.yaml", "too_many_steps.yaml:3:9: time.step: a step of 1e-06 s makes"},
+      {"feed_rate_too_high.yaml", "feed_rate_too_high.yaml:9:11: feeds[0].rate: feed 'feeder'"},
+      {"alias_bomb.yaml", "alias_bomb.yaml:4:"},
+      {"include_outside.yaml", "include_outside.yaml:4:5: include: '/etc/passwd' is outside"},
+      {"integer_wraps.yaml", "integer_wraps.yaml:3:26: solver.max_iterations: 2147483648"},
+  };
+  for (const auto& [file, message] : cases) {
+    SCOPED_TRACE(file);
+    const fs::path out = fresh_dir(std::string("hostile_") + file) / "out";
+    for (const std::string& command :
+         {"validate " + (bad / file).string(), (bad / file).string() + " -o " + out.string()}) {
+      const Outcome o = ces_sim(command);
+      EXPECT_EQ(o.code, 2) << o.err;
+      EXPECT_NE(o.err.find(message), std::string::npos) << o.err;
+      EXPECT_EQ(o.err.find("root:"), std::string::npos) << o.err;
+    }
+    EXPECT_FALSE(fs::exists(out));
+  }
+}
+
+// Includes come from the scene's folder, or one named by --include-path.
+TEST(Cli, IncludePathNamesAnotherFolderForIncludes) {
+  const fs::path scenes = fs::path(CES_TEST_DIR).parent_path() / "scenes";
+  const std::string scene = (scenes / "ces_feedrate" / "feed_5gps.yaml").string();
+  const Outcome refused = ces_sim("validate " + scene);
+  EXPECT_EQ(refused.code, 2);
+  EXPECT_NE(refused.err.find("include: '../machines/ces_machine.yaml' is outside the scene's "
+                             "folder"),
+            std::string::npos)
+      << refused.err;
+  const Outcome ok = ces_sim("validate " + scene + " --include-path " + scenes.string());
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  EXPECT_EQ(ces_sim("validate " + scene + " --include-path /nonexistent/folder").code, 2);
+}
+
+// Warnings go to stderr, one per line; the scene still validates and runs.
+TEST(Cli, WarningsDoNotStopAScene) {
+  const fs::path dir = fresh_dir("warning_scene");
+  std::ofstream(dir / "s.yaml") << "ces_sim: 1\ntime: {step: 1 ms, end: 2 ms}\n"
+                                   "materials: {copper: {density: 8960 kg/m^3}}\n"
+                                   "feeds:\n"
+                                   "  - name: f\n"
+                                   "    region: {box: {min: [0, 0, 0], max: [0.01, 0.01, 0.01]}}\n"
+                                   "    rate: 1000 /s\n"
+                                   "    mix: [{material: copper, size: {constant: 1 mm}}]\n";
+  const std::string warning =
+      "s.yaml:4:1: warning: feeds: particles are fed but the scene gives "
+      "no gravity";
+  const Outcome v = ces_sim("validate " + (dir / "s.yaml").string());
+  EXPECT_EQ(v.code, 0) << v.err;
+  EXPECT_NE(v.out.find("OK"), std::string::npos);
+  EXPECT_NE(v.err.find(warning), std::string::npos) << v.err;
+  const Outcome r = ces_sim((dir / "s.yaml").string() + " -o " + (dir / "out").string() + " -q");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find(warning), std::string::npos) << r.err;
 }
 
 TEST(Cli, RunWritesTheOutputFilesInTheirFormats) {

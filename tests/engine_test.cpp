@@ -1054,5 +1054,16 @@ TEST(Engine, OverlappingClusterMassPropertiesMatchClosedForm) {
   EXPECT_NEAR(t.unit_inertia.maxCoeff(), 0.4 + 1.5 * 1.5, 1e-12);
 }
 
+// A sphere a billionth the size of its neighbour would have the octree
+// split the large one's surface into 5e7 cells; the bound on cells coarsens
+// them instead. The tiny sphere lies inside: the union is the unit sphere,
+// to the accuracy of the coarser cells (1e-3).
+TEST(Engine, ClusterOfVeryDifferentSpheresStaysAccurate) {
+  const ParticleShape s = make_particle_shape({Vec3(0, 0, 0), Vec3(0.5, 0, 0)}, {1.0, 1e-9});
+  const double volume = 4.0 / 3.0 * kPi;
+  EXPECT_NEAR(s.volume, volume, 1e-3 * volume);
+  EXPECT_NEAR(s.unit_inertia.x(), 0.4, 1e-3 * 0.4);
+}
+
 }  // namespace
 }  // namespace ces

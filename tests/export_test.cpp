@@ -255,8 +255,8 @@ std::pair<Vec3, Vec3> stl_bounds(const fs::path& path) {
   return {lo, hi};
 }
 
-void expect_validates(const Exported& e) {
-  const auto v = ces::test::ces_sim("validate " + (e.folder / "scene.yaml").string());
+void expect_validates(const Exported& e, const std::string& extra = "") {
+  const auto v = ces::test::ces_sim("validate " + (e.folder / "scene.yaml").string() + extra);
   EXPECT_EQ(v.code, 0) << v.out << v.err;
 }
 
@@ -544,7 +544,12 @@ TEST(ExportStl, IncludesJointsAndObjParts) {
   EXPECT_EQ(body(e, "chute")["material"].as<std::string>(), "chute");
   EXPECT_EQ(e.scene["materials"]["chute"]["friction"].as<double>(), 0.4);
   EXPECT_EQ(report_part(e, "chute")["mesh"]["open_edges"], 4);
-  expect_validates(e);
+  // The fragment stays where it is, outside the scene's folder: ces-sim is
+  // told where (and refuses the include without it).
+  const std::string common = fs::weakly_canonical(work / "common").string();
+  EXPECT_NE(e.err.find("run it with --include-path " + common), std::string::npos) << e.err;
+  EXPECT_EQ(ces::test::ces_sim("validate " + (e.folder / "scene.yaml").string()).code, 2);
+  expect_validates(e, " --include-path " + common);
 }
 
 // The field models want the drum's axis on z through the origin: CAD drawn

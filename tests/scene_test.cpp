@@ -131,6 +131,47 @@ TEST(SceneUnits, RejectsWhatIsNotAQuantity) {
   EXPECT_EQ(std::get<std::string>(units::parse("5 parsecs")), "unknown unit 'parsecs'");
 }
 
+// Out of a double's range, or past the bounds on powers: refused, never
+// read as another number (the exponent used to be dropped: 4e99999 s = 4 s).
+TEST(SceneUnits, RefusesNumbersOutOfRange) {
+  for (const char* text : {"4e99999999999 s", "4e-99999999999 s", "1e309 m", "1e-320 s", "1e-400",
+                           "2e308", "1e-300 mm^3", "1e303 km^2"}) {
+    const auto parsed = units::parse(text);
+    ASSERT_TRUE(std::holds_alternative<std::string>(parsed)) << text;
+    EXPECT_NE(std::get<std::string>(parsed).find("number out of range"), std::string::npos)
+        << text << ": " << std::get<std::string>(parsed);
+  }
+  for (const char* text : {"4 s^99999999999", "1 km^1000000000", "1 m^17", "1 m^-17", "1 m^8 m^9",
+                           "1 kg/g kg/g", "1 s^-99999999999999999999"}) {
+    const auto parsed = units::parse(text);
+    if (std::string(text) == "1 kg/g kg/g") {  // 1e6, dimensionless: within every bound
+      EXPECT_EQ(std::get<units::Quantity>(parsed).value, 1e6);
+      continue;
+    }
+    ASSERT_TRUE(std::holds_alternative<std::string>(parsed)) << text;
+    EXPECT_NE(std::get<std::string>(parsed).find("a unit power beyond 16"), std::string::npos)
+        << text << ": " << std::get<std::string>(parsed);
+  }
+  // Zero is zero however written; the largest and smallest normal doubles pass.
+  EXPECT_EQ(std::get<units::Quantity>(units::parse("0e-99999 s")).value, 0.0);
+  EXPECT_EQ(std::get<units::Quantity>(units::parse("1.7976931348623157e308")).value,
+            1.7976931348623157e308);
+  EXPECT_EQ(std::get<units::Quantity>(units::parse("2.2250738585072014e-305 mm")).value,
+            2.2250738585072014e-308);
+  EXPECT_EQ(std::get<units::Quantity>(units::parse("1 m^16")).dimension.exponent[1], 16);
+}
+
+// A thousand factors cancel to a plain number: bounded all the way.
+TEST(SceneUnits, LongExpressionsStayBounded) {
+  std::string text = "1";
+  for (int i = 0; i < 1000; ++i) text += " kg/g";
+  EXPECT_NE(std::get<std::string>(units::parse(text)).find("a unit power beyond 16"),
+            std::string::npos);
+  text = "1";
+  for (int i = 0; i < 17; ++i) text += " m";
+  EXPECT_TRUE(std::holds_alternative<std::string>(units::parse(text)));
+}
+
 TEST(SceneUnits, DescribesDimensions) {
   EXPECT_EQ(units::describe(units::find_kind("mass_rate")->dimension), "a mass rate (kg/s)");
   EXPECT_EQ(units::describe(std::get<units::Quantity>(units::parse("3 kg m/s")).dimension),
@@ -406,8 +447,9 @@ TEST(SceneResolved, ReloadsToTheSameSimulation) {
 
 TEST(SceneResolved, HashFollowsTheResolvedText) {
   const Simulation a = load(kScenes + "default.yaml");
-  const Simulation b =
-      load(kScenes + "default.yaml", {{{"seed", "43"}}, std::nullopt, std::nullopt});
+  LoadOptions seed;
+  seed.overrides = {{"seed", "43"}};
+  const Simulation b = load(kScenes + "default.yaml", seed);
   EXPECT_NE(a.scene_hash, b.scene_hash);
   EXPECT_EQ(a.scene_hash, load(kScenes + "default.yaml").scene_hash);
 }
@@ -434,7 +476,9 @@ TEST(SceneIncludes, MergeRelativeToTheIncludingFile) {
       "time: {step: 1 ms, end: 0.1 s}\n"
       "materials:\n  copper: {friction: 0.5}\n"  // overrides one key
       "bodies:\n  - {name: wall, geometry: {box: {size: [1, 1, 1]}}, material: copper}\n");
-  const Simulation sim = load(scene);
+  LoadOptions options;  // machines/ and lib/ are beside the scene's folder
+  options.include_paths = {dir.path().string()};
+  const Simulation sim = load(scene, options);
   const auto& materials = sim.model->materials.materials();
   ASSERT_EQ(materials.size(), 2u);
   EXPECT_EQ(materials[1].name, "copper");
@@ -823,6 +867,69 @@ const Expected kExpectations[] = {
     {"zero_axis.yaml", "zero_axis.yaml", 10,
      "bodies[0].pose.axis: got a zero vector, expected a direction"},
     {"zero_step.yaml", "zero_step.yaml", 3, "time.step: '0 s' is out of range, expected > 0 s"},
+    // Hostile input: bounds, numbers out of range, encodings, includes.
+    {"alias_bomb.yaml", "alias_bomb.yaml", 4, "the scene expands to more than 200000 values"},
+    {"apostrophe_key.yaml", "apostrophe_key.yaml", 3, "typo'd key: unknown key 'typo'd key'"},
+    {"bins_count_huge.yaml", "bins_count_huge.yaml", 6,
+     "collectors[0].bins.count: 1000000000 is out of range, expected <= 100000"},
+    {"data_file_not_regular.yaml", "data_file_not_regular.yaml", 7,
+     "shapes.grain.file: cannot read the shape: /dev/zero: not a regular file"},
+    {"feed_mass_rate_too_high.yaml", "feed_mass_rate_too_high.yaml", 14,
+     "feeds[1].rate: feed 'dust' makes about 4263"},
+    {"feed_rate_too_high.yaml", "feed_rate_too_high.yaml", 9,
+     "feeds[0].rate: feed 'feeder' makes about 100000000000 particles over the run (all feeds "
+     "100000000000), expected at most 10000000 in all"},
+    {"include_outside.yaml", "include_outside.yaml", 4,
+     "include: '/etc/passwd' is outside the scene's folder"},
+    {"include_outside.yaml", "include_outside.yaml", 5,
+     "include: '../../../../../../../../etc/shadow' is outside the scene's folder"},
+    {"include_outside.yaml", "include_outside.yaml", 6,
+     "include: '../scenes/tiny.yaml' is outside the scene's folder"},
+    {"integer_wraps.yaml", "integer_wraps.yaml", 3,
+     "solver.max_iterations: 2147483648 is out of range, expected <= 1000000"},
+    {"invalid_utf8.yaml", "invalid_utf8.yaml", 3, "invalid UTF-8 (byte 0xa1), expected UTF-8 text"},
+    {"key_too_long.yaml", "key_too_long.yaml", 4, "a key path longer than 256 characters"},
+    {"nesting_too_deep.yaml", "nesting_too_deep.yaml", 3, "nested deeper than 32 levels"},
+    {"number_overflow.yaml", "number_overflow.yaml", 3,
+     "time.end: '4e99999999999 s': number out of range"},
+    {"number_underflow.yaml", "number_underflow.yaml", 3,
+     "time.step: '4e-99999999999 s': number out of range"},
+    {"plain_number_out_of_range.yaml", "plain_number_out_of_range.yaml", 3,
+     "contact.envelope: 1e999 is out of range"},
+    {"step_subnormal.yaml", "step_subnormal.yaml", 2, "time.step: '1e-320 s': number out of range"},
+    {"shape_too_many_spheres.yaml", "shape_too_many_spheres.yaml", 8,
+     "shapes.chain.spheres: a shape of 1001 spheres, expected at most 1000"},
+    {"too_many_shapes.yaml", "too_many_shapes.yaml", 27,
+     "feeds[0].mix[16].shape: a particle shape past the first 16"},
+    {"too_many_materials.yaml", "too_many_materials.yaml", 3,
+     "materials: 257 materials, expected at most 256"},
+    {"bin_tallies.yaml", "bin_tallies.yaml", 5,
+     "collectors: 100000 bins for 101 materials make 10100000 tallies, expected at most "
+     "10000000 (fewer bins)"},
+    {"trajectory_frames.yaml", "trajectory_frames.yaml", 4,
+     "output.trajectories.every: a frame every step (0.001 s) makes 1000000 trajectory frames, "
+     "expected at most 100000"},
+    {"too_many_steps.yaml", "too_many_steps.yaml", 3,
+     "time.step: a step of 1e-06 s makes 100000000 steps to the end (100 s), expected at most "
+     "10000000"},
+    {"unit_power_overflow.yaml", "unit_power_overflow.yaml", 4,
+     "time.end: '4 s^99999999999': a unit power beyond 16"},
+    {"unit_power_wraps.yaml", "unit_power_wraps.yaml", 7,
+     "'1 km^1000000000': a unit power beyond 16"},
+    {"utf8_escape_surrogate.yaml", "utf8_escape_surrogate.yaml", 3,
+     "invalid YAML: invalid unicode"},
+    // Scenes that load but could not do what they say.
+    {"bins_outside_domain.yaml", "bins_outside_domain.yaml", 6,
+     "collectors[0].bins: the bins [0.6, 0.9] m lie outside the domain"},
+    {"body_outside_domain.yaml", "body_outside_domain.yaml", 12,
+     "bodies[1].pose: body 'splitter' lies outside the domain"},
+    {"body_outside_domain.yaml", "body_outside_domain.yaml", 16,
+     "bodies[2].pose: plane 'ceiling' misses the domain"},
+    {"feed_inside_body.yaml", "feed_inside_body.yaml", 14,
+     "feeds[0].region: the region lies inside body 'drum', so no particle can be placed"},
+    {"voltage_without_unit.yaml", "voltage_without_unit.yaml", 20,
+     "electrostatics.electrodes[0].voltage: a number without a unit is ambiguous here, expected "
+     "a voltage (V)"},
 };
 
 class BadScene : public ::testing::TestWithParam<std::string> {};

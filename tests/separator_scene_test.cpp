@@ -38,12 +38,14 @@ bool has(const std::vector<std::string>& list, const std::string& item) {
   return std::find(list.begin(), list.end(), item) != list.end();
 }
 
-// Loads a scene with overrides, on one thread.
+// Loads a scene with overrides, on one thread; includes may come from
+// scenes/ (the reference machine).
 Simulation load(const std::string& scene,
                 const std::vector<std::pair<std::string, std::string>>& overrides = {}) {
   scene::LoadOptions options;
   options.overrides = overrides;
   options.threads = 1;
+  options.include_paths = {kScenes};
   return scene::load(scene, options);
 }
 

@@ -37,6 +37,18 @@ TEST(Study, CasesAreTheGridLastAxisFastest) {
   EXPECT_THROW(study::parse_axis("time.step=1ms,,2ms"), std::invalid_argument);
 }
 
+// Each case runs the scene as the study does, with the same --include-path:
+// a scene that includes from beside its folder works in every case.
+TEST(Study, CasesPassOnTheIncludePaths) {
+  study::Options o;
+  o.scene = kScene;
+  o.include_paths = {"/a/machines", "/b"};
+  const auto cases = study::make_cases({study::parse_axis("seed=1,2")});
+  const std::vector<std::string> args = study::case_arguments(o, cases[1]);
+  const std::vector<std::string> tail(args.end() - 4, args.end());
+  EXPECT_EQ(tail, (std::vector<std::string>{"--include-path", "/a/machines", "--include-path", "/b"}));
+}
+
 // Keys joined by ':' vary together: DVI and DEM each at their own steps.
 TEST(Study, ZippedKeysVaryTogether) {
   const auto cases = study::make_cases({study::parse_axis("contact.model:time.step=dvi:1ms,dem:5us"),

@@ -1,7 +1,8 @@
 // ces-sim: the command line.
 //
-//   ces-sim SCENE [-o DIR] [--set key.path=value]... [--seed N] [--threads N] [--quiet]
-//   ces-sim validate SCENE [--set ...]
+//   ces-sim SCENE [-o DIR] [--set key.path=value]... [--seed N] [--threads N]
+//           [--include-path DIR]... [--quiet]
+//   ces-sim validate SCENE [--set ...] [--include-path DIR]...
 //   ces-sim schema [--markdown]
 //   ces-sim resume DIR [--threads N] [--quiet]
 //   ces-sim compare DIR_A DIR_B [--tol-count N] [--tol-mass F] [--tol-w1 MM]
@@ -58,6 +59,7 @@ struct Args {
   std::string scene;
   std::string out_dir;
   std::vector<std::string> sets;
+  std::vector<std::string> include_paths;
   std::optional<std::uint64_t> seed;
   std::optional<int> threads;
   bool quiet = false;
@@ -70,7 +72,12 @@ void add_scene_options(CLI::App& app, Args& args) {
   app.add_option("--set", args.sets, "Override a scene value before validation: key.path=value")
       ->type_name("K=V");
   app.add_option("--seed", args.seed, "Random seed (wins over the scene's)");
-  app.add_option("--threads", args.threads, "Worker threads")->check(CLI::PositiveNumber);
+  app.add_option("--threads", args.threads, "Worker threads (1 to 1024)")
+      ->check(CLI::Range(1, 1024));
+  app.add_option("--include-path", args.include_paths,
+                 "A folder includes may come from besides the scene's own (repeatable)")
+      ->type_name("DIR")
+      ->check(CLI::ExistingDirectory);
 }
 
 ces::scene::LoadOptions load_options(const Args& args) {
@@ -83,6 +90,7 @@ ces::scene::LoadOptions load_options(const Args& args) {
   }
   o.seed = args.seed;
   o.threads = args.threads;
+  o.include_paths = args.include_paths;
   return o;
 }
 
@@ -97,6 +105,16 @@ double log_progress_interval() {
     throw UsageError(std::string("CES_PROGRESS_INTERVAL=") + text +
                      ": expected a number of seconds above 0");
   return seconds;
+}
+
+// Loads the scene; its warnings go to stderr, one per line.
+ces::Simulation load_scene(const Args& args) {
+  std::vector<ces::scene::Diagnostic> warnings;
+  ces::scene::LoadOptions options = load_options(args);
+  options.warnings = &warnings;
+  ces::Simulation sim = ces::scene::load(args.scene, options);
+  for (const ces::scene::Diagnostic& w : warnings) std::fprintf(stderr, "%s\n", w.str().c_str());
+  return sim;
 }
 
 ces::RunOptions run_options(const Args& args) {
@@ -120,7 +138,7 @@ int ended(const ces::RunResult& result) {
 }
 
 int run_scene(const Args& args) {
-  const ces::Simulation sim = ces::scene::load(args.scene, load_options(args));
+  const ces::Simulation sim = load_scene(args);
   return ended(ces::run(sim, run_options(args)));
 }
 
@@ -135,7 +153,7 @@ int resume(const Args& args) {
 }
 
 int validate(const Args& args) {
-  ces::scene::load(args.scene, load_options(args));
+  load_scene(args);
   std::printf("OK: %s\n", args.scene.c_str());
   return kSuccess;
 }
@@ -207,6 +225,7 @@ int study(const Args& args, StudyArgs& study) {
     ces::study::Options& o = study.options;
     o.scene = args.scene;
     o.base_sets = load_options(args).overrides;
+    o.include_paths = args.include_paths;
     o.seed = args.seed;
     o.threads = args.threads;
     o.only_case = study.only_case;
@@ -309,7 +328,8 @@ int main(int argc, char** argv) {
       "resume", "Continue an unfinished run from its checkpoint (scenes with output.checkpoint)");
   resume_cmd->add_option("dir", args.dir_a, "The run's output folder (it holds partial/)")
       ->required();
-  resume_cmd->add_option("--threads", args.threads, "Worker threads")->check(CLI::PositiveNumber);
+  resume_cmd->add_option("--threads", args.threads, "Worker threads (1 to 1024)")
+      ->check(CLI::Range(1, 1024));
   resume_cmd->add_flag("-q,--quiet", args.quiet, "No progress line and no end-of-run report");
 
   StudyArgs study_args;

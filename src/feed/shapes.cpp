@@ -74,6 +74,10 @@ SphereList rod_spheres(double aspect) {
 }
 
 SphereList read_sphere_csv(const std::filesystem::path& path) {
+  // Not a device or a pipe: reading one may never end.
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
+    throw std::runtime_error(path.string() + ": not a regular file");
   std::ifstream in(path);
   if (!in) throw std::runtime_error(path.string() + ": cannot open the file");
   SphereList out;

@@ -365,6 +365,10 @@ GridField::GridField(const std::array<Axis, 3>& axes, std::vector<Vec3> values)
 }
 
 GridField GridField::load_csv(const std::filesystem::path& path) {
+  // Not a device or a pipe: reading one may never end.
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
+    throw std::runtime_error(path.string() + ": not a regular file");
   std::ifstream in(path);
   if (!in) throw std::runtime_error(path.string() + ": cannot open the field file");
   return parse_csv(in, path.string());

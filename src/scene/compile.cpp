@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <iomanip>
 #include <limits>
 #include <map>
 #include <set>
@@ -11,6 +12,8 @@
 #include "feed/shapes.hpp"
 #include "scene/diagnostics.hpp"
 #include "scene/electrostatics.hpp"
+#include "scene/limits.hpp"
+#include "scene/resolve.hpp"
 #include "scene/schema.hpp"
 
 namespace ces::scene {
@@ -29,6 +32,14 @@ std::string format(double x) {
 }
 
 std::string metres(double x) { return format(x) + " m"; }
+
+// A count in full ("10000000", not "1e+07") while it is short enough.
+std::string whole(double x) {
+  if (!(x < 1e15)) return format(x);
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(0) << x;
+  return s.str();
+}
 
 // Names declared by one section, for duplicate checks and references.
 class NameTable {
@@ -119,8 +130,12 @@ class Compiler {
     read_joints();
     read_motors();
     read_domain();
+    check_bodies_in_domain();
     read_feeds();
+    check_feed_counts();
+    check_gravity();
     read_collectors();
+    check_bin_tallies();
     read_air();
     read_electrostatics();
     read_output();
@@ -142,6 +157,12 @@ class Compiler {
       diags_.error(time.at("step"), "step " + format(model_->step) +
                                         " s is longer than the run (end " + format(sim_.end_time) +
                                         " s), expected step <= end");
+    else if (!(sim_.end_time / model_->step <= limits::kSteps))
+      diags_.error(time.at("step"), "a step of " + format(model_->step) + " s makes " +
+                                        whole(sim_.end_time / model_->step) +
+                                        " steps to the end (" + format(sim_.end_time) +
+                                        " s), expected at most " + whole(limits::kSteps) +
+                                        " (a longer step or a shorter run)");
     read_solver(root_.at("solver"));
     const Node& contact = root_.at("contact");
     model_->contact.envelope_fraction = contact.at("envelope").number();
@@ -182,6 +203,14 @@ class Compiler {
   void read_materials() {
     std::vector<Material> list;
     if (const Node* materials = root_.find("materials")) {
+      // The table below has an entry per ordered pair: past the bound the
+      // load stops here, before anything refers to a material.
+      if (materials->entries.size() > limits::kMaterials) {
+        diags_.error(*materials, std::to_string(materials->entries.size()) +
+                                     " materials, expected at most " +
+                                     std::to_string(limits::kMaterials));
+        diags_.raise();
+      }
       for (const Entry& e : materials->entries) {
         const Node& m = e.value;
         materials_.declare(e.key, e.key_mark, m.path, int(list.size()), diags_);
@@ -288,6 +317,10 @@ class Compiler {
   std::optional<geo::Shape> mesh(const Node& s) {
     const Node& file = s.at("file");
     const fs::path path = scene_dir_ / file.string();
+    if (const std::string why = too_large(path, limits::kDataFileBytes); !why.empty()) {
+      diags_.error(file, "cannot load mesh " + path.string() + ": " + why);
+      return std::nullopt;
+    }
     try {
       return geo::load_mesh(path.string(), s.at("scale").number());
     } catch (const std::exception& e) {
@@ -486,6 +519,66 @@ class Compiler {
     return std::nullopt;
   }
 
+  // A body that fills the same space all run: static, or turning about an
+  // axis of symmetry (a drum on its own axis). Checks of where it is hold
+  // for the whole run only for these.
+  static bool fixed_in_space(const RigidBody& b) {
+    if (b.kind == BodyKind::Static) return true;
+    if (b.kind == BodyKind::Dynamic || b.motion.linear_velocity != Vec3::Zero()) return false;
+    if (b.motion.angular_speed == 0.0) return true;
+    const auto* c = std::get_if<geo::Cylinder>(&b.shape);
+    const Vec3 axis = b.pose.orientation * Vec3::UnitZ();
+    const Vec3 offset = b.pose.position - b.motion.center;
+    return c && axis.cross(b.motion.axis).norm() < 1e-9 && axis.cross(offset).norm() < 1e-9;
+  }
+
+  // The world box around a bounded body at t = 0.
+  static geo::Aabb world_bounds(const RigidBody& b) {
+    const geo::Aabb local = geo::local_bounds(b.shape);
+    geo::Aabb box = geo::Aabb::empty();
+    for (int k = 0; k < 8; ++k)
+      box.grow(b.pose.apply(Vec3((k & 1) ? local.max.x() : local.min.x(),
+                                 (k & 2) ? local.max.y() : local.min.y(),
+                                 (k & 4) ? local.max.z() : local.min.z())));
+    return box;
+  }
+
+  static Vec3 corner(const geo::Aabb& box, int k) {
+    return {(k & 1) ? box.max.x() : box.min.x(), (k & 2) ? box.max.y() : box.min.y(),
+            (k & 4) ? box.max.z() : box.min.z()};
+  }
+
+  // A body that stays outside the domain meets no particle: a splitter or a
+  // wall placed there is a mistake. So is a plane whose solid holds the
+  // whole domain.
+  void check_bodies_in_domain() {
+    if (!sim_.domain) return;
+    const Node* list = root_.find("bodies");
+    for (std::size_t i = 0; list && i < model_->bodies.size(); ++i) {
+      const RigidBody& b = model_->bodies[i];
+      if (!fixed_in_space(b)) continue;
+      const Node& node = list->items[i].at("pose");
+      if (const auto* plane = std::get_if<geo::Plane>(&b.shape)) {
+        int inside = 0;
+        for (int k = 0; k < 8; ++k) {
+          const Vec3 local = b.pose.inverse_apply(corner(*sim_.domain, k));
+          inside += plane->normal.dot(local) < plane->offset ? 1 : 0;
+        }
+        if (inside == 8)
+          diags_.error(node, "the solid side of plane '" + b.name +
+                                 "' holds the whole domain, expected a plane through domain.box");
+        else if (inside == 0)
+          diags_.error(node, "plane '" + b.name +
+                                 "' misses the domain, so no particle can reach it; expected a "
+                                 "plane through domain.box");
+      } else if (!world_bounds(b).overlaps(*sim_.domain)) {
+        diags_.error(node, "body '" + b.name +
+                               "' lies outside the domain, so no particle can reach it; "
+                               "expected a body inside domain.box");
+      }
+    }
+  }
+
   bool inside_domain(const geo::Aabb& b) const {
     return !sim_.domain || ((b.min.array() >= sim_.domain->min.array()).all() &&
                             (b.max.array() <= sim_.domain->max.array()).all());
@@ -515,8 +608,10 @@ class Compiler {
       if (const auto box = feed_region(region)) {
         feed.region = *box;
         check_fit(region, *box, across);
+        check_free(region, *box);
       }
       sim_.feeds.push_back(std::move(feed));
+      feed_rates_.push_back(&rate);
     }
   }
 
@@ -607,6 +702,75 @@ class Compiler {
     }
   }
 
+  // A region all inside one convex solid (a box, a solid cylinder, a
+  // plane's half-space) that stays put can place no particle. Convexity
+  // makes the corners enough.
+  void check_free(const Node& region, const geo::Aabb& box) {
+    for (const RigidBody& b : model_->bodies) {
+      const auto* c = std::get_if<geo::Cylinder>(&b.shape);
+      const bool convex = std::holds_alternative<geo::Plane>(b.shape) ||
+                          std::holds_alternative<geo::Box>(b.shape) ||
+                          (c && (c->thickness == 0.0 || c->thickness >= c->radius));
+      if (!convex || !fixed_in_space(b)) continue;
+      bool inside = true;
+      for (int k = 0; k < 8 && inside; ++k) {
+        hits_.clear();
+        geo::query(b.shape, b.pose.inverse_apply(corner(box, k)), 0.0, hits_);
+        inside = std::any_of(hits_.begin(), hits_.end(),
+                             [](const geo::SurfaceHit& h) { return h.distance < 0.0; });
+      }
+      if (inside)
+        return diags_.error(region, "the region lies inside body '" + b.name +
+                                        "', so no particle can be placed; expected a region in "
+                                        "free space");
+    }
+  }
+
+  // The particles the feeds make over the run, expected from the rates:
+  // all of them are held in memory at once if nothing leaves.
+  void check_feed_counts() {
+    double total = 0.0, largest = -1.0;
+    std::size_t at = 0;
+    for (std::size_t i = 0; i < sim_.feeds.size(); ++i) {
+      const double n = expected_particles(sim_.feeds[i]);
+      total += n;
+      if (!(n <= largest)) {
+        largest = n;
+        at = i;
+      }
+    }
+    if (total <= limits::kFedParticles) return;
+    diags_.error(*feed_rates_[at],
+                 "feed '" + sim_.feeds[at].name + "' makes about " + whole(largest) +
+                     " particles over the run (all feeds " + whole(total) + "), expected at most " +
+                     whole(limits::kFedParticles) + " in all (a lower rate or a shorter feed)");
+  }
+
+  double expected_particles(const Feed& f) const {
+    const double time = std::max(0.0, std::min(f.duration, sim_.end_time - f.start));
+    if (f.count_rate > 0.0) return f.count_rate * time;
+    double per_kg = 0.0;  // particles in a kilogram of the mix
+    for (const FeedComponent& c : f.mix) {
+      const double density = model_->materials.materials()[std::size_t(c.material)].density;
+      const double volume = model_->shapes[std::size_t(c.shape)].volume;
+      const double mean_mass = density * volume * c.size.mean_mass_per_particle_factor() /
+                               (c.shape_size * c.shape_size * c.shape_size);
+      per_kg += c.mass_fraction / mean_mass;
+    }
+    return f.mass_rate * time * per_kg;
+  }
+
+  // Without gravity, fed particles keep their feed velocity: with none,
+  // they hang where they appear. A scene may mean it (gravity: [0, 0, 0]
+  // says so); leaving gravity out is usually an omission.
+  void check_gravity() {
+    if (sim_.feeds.empty() || root_.find("gravity")) return;
+    diags_.warning(root_.at("feeds"),
+                   "particles are fed but the scene gives no gravity: they move only by their feed "
+                   "velocity, drag and fields; expected gravity (e.g. [0, -9.81 m/s^2, 0]), or "
+                   "gravity: [0, 0, 0] to say there is none");
+  }
+
   // ---------------------------------------------------------------- particle shapes
 
   // The component's shape, compiled on first use: a shapes entry (which
@@ -625,6 +789,13 @@ class Compiler {
     if (!aspect) return std::nullopt;
     const std::string key = entry ? "shapes." + name : name + "@" + format(*aspect);
     if (const auto it = shape_index_.find(key); it != shape_index_.end()) return it->second;
+    if (shape_index_.size() == limits::kParticleShapes) {
+      diags_.error(ref ? *ref : component,
+                   "a particle shape past the first " + std::to_string(limits::kParticleShapes) +
+                       " (each shapes entry fed and each flake or rod aspect is one), expected "
+                       "fewer");
+      return shape_index_[key] = std::nullopt;
+    }
     const auto spheres = entry ? cluster_spheres(*entry) : builtin_spheres(name, *aspect);
     std::optional<int> index;
     if (spheres) index = add_shape(*spheres, entry, name);
@@ -680,20 +851,28 @@ class Compiler {
                                   : "neither spheres nor file given, expected one of them");
       return std::nullopt;
     }
+    feed::SphereList list;
     if (file) {
+      const fs::path path = scene_dir_ / file->string();
       try {
-        return feed::read_sphere_csv(scene_dir_ / file->string());
+        if (const std::string why = too_large(path, limits::kFileBytes); !why.empty())
+          throw std::runtime_error(path.string() + ": " + why);
+        list = feed::read_sphere_csv(path);
       } catch (const std::exception& e) {
         diags_.error(*file, std::string("cannot read the shape: ") + e.what());
         return std::nullopt;
       }
+    } else {
+      for (const Node& sphere : spheres->items) {
+        list.centers.push_back(vec3(sphere));
+        list.radii.push_back(sphere.items[3].number());
+      }
     }
-    feed::SphereList list;
-    for (const Node& sphere : spheres->items) {
-      list.centers.push_back(vec3(sphere));
-      list.radii.push_back(sphere.items[3].number());
-    }
-    return list;
+    if (list.centers.size() <= limits::kShapeSpheres) return list;
+    diags_.error(file ? *file : *spheres,
+                 "a shape of " + std::to_string(list.centers.size()) + " spheres, expected at most " +
+                     std::to_string(limits::kShapeSpheres));
+    return std::nullopt;
   }
 
   // Size at scale 1: a scene entry's `size` or its bounding diameter; for
@@ -785,9 +964,22 @@ class Compiler {
       collector.to = bins.at("to").number();
       collector.bins = bins.at("count").scalar.get<int>();
       if (check_bins(bins, collector)) read_products(c.find("products"), collector);
-      check_reachable(plane, collector);
+      check_reachable(plane, bins, collector);
       sim_.collectors.push_back(std::move(collector));
     }
+  }
+
+  // Each bin keeps a tally per material.
+  void check_bin_tallies() {
+    double bins = 0.0;
+    for (const Collector& c : sim_.collectors) bins += c.bins;
+    const double tallies = bins * double(model_->materials.materials().size());
+    if (tallies > limits::kBinTallies)
+      diags_.error(root_.at("collectors"),
+                   whole(bins) + " bins for " +
+                       std::to_string(model_->materials.materials().size()) +
+                       " materials make " + whole(tallies) + " tallies, expected at most " +
+                       whole(limits::kBinTallies) + " (fewer bins)");
   }
 
   bool check_bins(const Node& bins, const Collector& c) {
@@ -831,22 +1023,35 @@ class Compiler {
 
   // With a domain, the plane must cut it: particles leave the domain first
   // otherwise.
-  void check_reachable(const Node& plane, const Collector& c) {
+  void check_reachable(const Node& plane, const Node& bins, const Collector& c) {
     if (!sim_.domain) return;
     double lo = kInf, hi = -kInf;
     for (int k = 0; k < 8; ++k) {
-      const Vec3 corner((k & 1) ? sim_.domain->max.x() : sim_.domain->min.x(),
-                        (k & 2) ? sim_.domain->max.y() : sim_.domain->min.y(),
-                        (k & 4) ? sim_.domain->max.z() : sim_.domain->min.z());
-      const double side = c.normal.dot(corner - c.point);
+      const double side = c.normal.dot(corner(*sim_.domain, k) - c.point);
       lo = std::min(lo, side);
       hi = std::max(hi, side);
     }
     if (lo >= 0.0 || hi <= 0.0)
-      diags_.error(
+      return diags_.error(
           plane,
           "the plane misses the domain, so no particle can reach it; expected a plane through "
           "domain.box");
+    if (c.from < c.to) check_bins_in_domain(bins, c);
+  }
+
+  // The domain's extent along the bin axis bounds where a particle can
+  // cross the plane.
+  void check_bins_in_domain(const Node& bins, const Collector& c) {
+    double lo = kInf, hi = -kInf;
+    for (int k = 0; k < 8; ++k) {
+      const double along = c.axis.dot(corner(*sim_.domain, k) - c.point);
+      lo = std::min(lo, along);
+      hi = std::max(hi, along);
+    }
+    if (c.to <= lo || c.from >= hi)
+      diags_.error(bins, "the bins [" + format(c.from) + ", " + format(c.to) +
+                             "] m lie outside the domain, which spans [" + format(lo) + ", " +
+                             format(hi) + "] m along the bin axis; expected bins inside it");
   }
 
   // ---------------------------------------------------------------- separator physics
@@ -875,6 +1080,19 @@ class Compiler {
 
   // ---------------------------------------------------------------- output
 
+  // A frame is written at most once a step, so a shorter interval counts as
+  // the step.
+  void check_frames(const Node& every_node, double every) {
+    const double interval = std::max(every, model_->step);
+    const double frames = sim_.end_time / interval;
+    if (frames <= limits::kFrames) return;
+    const std::string given = every < model_->step ? "a frame every step (" + format(interval) + " s)"
+                                                   : "a frame every " + format(interval) + " s";
+    diags_.error(every_node, given + " makes " + whole(frames) +
+                                 " trajectory frames, expected at most " +
+                                 whole(limits::kFrames) + " (a longer interval)");
+  }
+
   void read_output() {
     const Node& out = root_.at("output");
     sim_.output.dir = out.at("dir").string();
@@ -884,6 +1102,7 @@ class Compiler {
     if (t && t->at("format").string() != "none") {
       const std::string& kind = t->at("format").string();
       sim_.output.trajectories.every = t->at("every").number();
+      check_frames(t->at("every"), sim_.output.trajectories.every);
       sim_.output.trajectories.vtk = kind != "csv";
       sim_.output.trajectories.csv = kind != "vtk";
     } else {
@@ -983,7 +1202,9 @@ class Compiler {
   std::vector<bool> has_density_;
   // "shapes.<entry>" or "<built-in>@<aspect>" -> Model::shapes index; nullopt: reported
   std::map<std::string, std::optional<int>> shape_index_;
-  std::vector<double> shape_sizes_;  // per Model::shapes entry
+  std::vector<double> shape_sizes_;      // per Model::shapes entry
+  std::vector<const Node*> feed_rates_;  // per Simulation::feeds entry
+  std::vector<geo::SurfaceHit> hits_;
 };
 
 }  // namespace

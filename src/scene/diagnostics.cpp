@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <tuple>
 
+#include "scene/text.hpp"
+
 namespace ces::scene {
 namespace {
 
@@ -34,8 +36,9 @@ std::string Diagnostic::str() const {
     s += std::to_string(column);
   }
   s += ": ";
+  if (warning) s += "warning: ";
   if (!path.empty()) s += path + ": ";
-  return s + message;
+  return one_line(s + message);
 }
 
 SceneError::SceneError(std::vector<Diagnostic> d)
@@ -55,6 +58,11 @@ void Diagnostics::error(const Node& at, std::string message) {
   error(at.mark, at.path, std::move(message));
 }
 
+void Diagnostics::warning(const Node& at, std::string message) {
+  warnings_.push_back(
+      {at.mark.file, at.mark.line, at.mark.column, at.path, std::move(message), true});
+}
+
 void Diagnostics::raise() {
   const auto key = [](const Diagnostic& d) {
     return std::tie(d.file, d.line, d.column, d.path, d.message);
@@ -71,10 +79,13 @@ void Diagnostics::raise() {
 std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates) {
   // Up to a third of the word may be wrong (at least one letter): "densty",
   // "frcition" and "apdg" are caught; unrelated names are not suggested.
+  constexpr std::size_t kLongest = 64;
+  if (word.size() > kLongest) return "";
   const std::size_t limit = std::max<std::size_t>(1, word.size() / 3);
   const std::string* best = nullptr;
   std::size_t best_distance = limit + 1;
   for (const std::string& c : candidates) {
+    if (c.size() > kLongest) continue;
     const std::size_t d = edit_distance(word, c);
     if (d < best_distance) {
       best = &c;

@@ -15,6 +15,9 @@ class Diagnostics {
   // At a node of the tree; marks it reported so later passes stay quiet.
   void error(Node& at, std::string message);
   void error(const Node& at, std::string message);
+  // A warning: reported, but the scene loads.
+  void warning(const Node& at, std::string message);
+  const std::vector<Diagnostic>& warnings() const { return warnings_; }
 
   bool empty() const { return list_.empty(); }
   // Throws SceneError with everything collected, sorted by place.
@@ -22,10 +25,12 @@ class Diagnostics {
 
  private:
   std::vector<Diagnostic> list_;
+  std::vector<Diagnostic> warnings_;
 };
 
 // " (did you mean 'density'?)" when a candidate is a plausible typo of
-// `word`, else "".
+// `word`, else "". Words longer than any name are not compared (the cost
+// grows with the product of the lengths).
 std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates);
 
 // "a, b or c" ("a, b and c" with last = "and").

@@ -6,6 +6,8 @@
 #include <sstream>
 
 #include "scene/diagnostics.hpp"
+#include "scene/limits.hpp"
+#include "scene/resolve.hpp"
 
 namespace ces::scene {
 namespace {
@@ -197,9 +199,13 @@ class ElectrostaticsCompiler {
       diags_.error(f, "missing required key 'file', expected the grid's CSV file");
       return std::nullopt;
     }
+    const std::filesystem::path path = in_.scene_dir / file->string();
+    if (const std::string why = too_large(path, limits::kDataFileBytes); !why.empty()) {
+      diags_.error(*file, "cannot read the field grid: " + path.string() + ": " + why);
+      return std::nullopt;
+    }
     try {
-      return std::make_shared<const fields::GridField>(
-          fields::GridField::load_csv(in_.scene_dir / file->string()));
+      return std::make_shared<const fields::GridField>(fields::GridField::load_csv(path));
     } catch (const std::exception& e) {
       diags_.error(*file, std::string("cannot read the field grid: ") + e.what());
       return std::nullopt;

@@ -3,12 +3,15 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <charconv>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
 #include "scene/diagnostics.hpp"
+#include "scene/limits.hpp"
 #include "scene/schema.hpp"
+#include "scene/text.hpp"
 
 namespace ces::scene {
 namespace {
@@ -28,6 +31,8 @@ std::optional<std::string> read_file(const std::string& path, std::string& why) 
     why = fs::exists(path, ec) ? "not a regular file" : "no such file";
     return std::nullopt;
   }
+  why = too_large(path, limits::kFileBytes);
+  if (!why.empty()) return std::nullopt;
   std::ifstream in(path, std::ios::binary);
   std::ostringstream text;
   text << in.rdbuf();
@@ -60,9 +65,32 @@ void merge(Node& into, Node&& from) {
   into.mark = from.mark;
 }
 
+// An absolute path with symlinks resolved (as far as it exists).
+fs::path resolved(const fs::path& path) {
+  std::error_code ec;
+  return fs::weakly_canonical(fs::absolute(path.empty() ? fs::path(".") : path, ec), ec);
+}
+
+// Whether `path` is `folder` or lies below it (both resolved).
+bool is_within(const fs::path& path, const fs::path& folder) {
+  return std::mismatch(folder.begin(), folder.end(), path.begin(), path.end()).first ==
+         folder.end();
+}
+
+// The folders includes may come from: the scene's own, then the
+// --include-path ones.
+std::vector<fs::path> include_roots(const std::string& scene_path,
+                                    const std::vector<std::string>& include_paths) {
+  std::vector<fs::path> roots{resolved(fs::path(scene_path).parent_path())};
+  for (const std::string& folder : include_paths) roots.push_back(resolved(folder));
+  return roots;
+}
+
 class Includer {
  public:
-  explicit Includer(Diagnostics& diags) : diags_(diags) {}
+  Includer(const std::string& scene_path, const std::vector<std::string>& include_paths,
+           Budget& budget, Diagnostics& diags)
+      : roots_(include_roots(scene_path, include_paths)), budget_(budget), diags_(diags) {}
 
   // `named_at`: the include entry that asked for the file (none for the scene).
   std::optional<Node> load(const std::string& path, const std::optional<Mark>& named_at) {
@@ -88,7 +116,7 @@ class Includer {
       diags_.error(where, "include", "include cycle: " + chain + path);
       return std::nullopt;
     }
-    std::optional<Node> root = parse(text, path, is_json(path), diags_);
+    std::optional<Node> root = parse(text, path, is_json(path), budget_, diags_);
     if (!root) return std::nullopt;
     if (!root->is_map()) {
       diags_.error({path, 1, 1}, "",
@@ -121,12 +149,42 @@ class Includer {
       }
       const std::string child =
           (fs::path(path).parent_path() / name.string()).lexically_normal().string();
+      if (!admit(name, child)) continue;
       if (auto fragment = load(child, name.mark)) merge(base, std::move(*fragment));
     }
     merge(base, std::move(root));
     return base;
   }
 
+  // Whether the include `name` (in the file on top of the chain) may be
+  // read: within the bounds on chains and files, and inside an allowed
+  // folder once symlinks are resolved. Refusals do not say whether the file
+  // exists: a scene must not be a way to probe a machine's files.
+  bool admit(const Node& name, const std::string& child) {
+    const auto refuse = [&](const std::string& message) {
+      diags_.error(name.mark, "include", message);
+      return false;
+    };
+    if (ids_.size() >= std::size_t(limits::kIncludeDepth))
+      return refuse("an include chain of more than " + std::to_string(limits::kIncludeDepth) +
+                    " files, expected a shorter chain");
+    if (budget_.files < 0) return false;  // reported once, at the first file past the bound
+    if (budget_.files-- == 0)
+      return refuse("more than " + std::to_string(limits::kIncludeFiles) +
+                    " included files in one scene, expected fewer");
+    const fs::path target = resolved(child);
+    if (std::none_of(roots_.begin(), roots_.end(),
+                     [&](const fs::path& root) { return is_within(target, root); }))
+      return refuse("'" + excerpt(name.string(), limits::kPathBytes) +
+                    "' is outside the scene's folder, expected a file in " +
+                    roots_.front().string() +
+                    (roots_.size() > 1 ? " or an --include-path folder" : "") +
+                    " (symlinks resolved; another folder can be named with --include-path)");
+    return true;
+  }
+
+  std::vector<fs::path> roots_;  // folders includes may come from
+  Budget& budget_;
   Diagnostics& diags_;
   std::vector<std::string> ids_;    // canonical paths of the files being read
   std::vector<std::string> names_;  // the same, as written, for messages
@@ -147,8 +205,9 @@ std::vector<std::string> split_path(const std::string& key_path) {
 // An index, or the name of an item of a list of named mappings.
 std::optional<std::size_t> find_item(const Node& list, const std::string& segment) {
   if (!segment.empty() && std::all_of(segment.begin(), segment.end(), ::isdigit)) {
-    const std::size_t i = std::stoul(segment);
-    if (i < list.items.size()) return i;
+    std::size_t i = 0;
+    const auto [end, ec] = std::from_chars(segment.data(), segment.data() + segment.size(), i);
+    if (ec == std::errc() && i < list.items.size()) return i;
     return std::nullopt;
   }
   for (std::size_t i = 0; i < list.items.size(); ++i) {
@@ -167,14 +226,19 @@ void set_marks(Node& n, const Mark& mark) {
   }
 }
 
-std::optional<Node> parse_value(const std::string& value, const Mark& mark, Diagnostics& diags) {
+std::optional<Node> parse_value(const std::string& value, const Mark& mark, Budget& budget,
+                                Diagnostics& diags) {
+  if (invalid_utf8(value)) {
+    diags.error(mark, "", "invalid UTF-8 in the value, expected UTF-8 text");
+    return std::nullopt;
+  }
   try {
     (void)YAML::Load(value);
   } catch (const YAML::Exception& e) {
-    diags.error(mark, "", "cannot parse the value '" + value + "': " + e.msg);
+    diags.error(mark, "", "cannot parse the value '" + excerpt(value) + "': " + e.msg);
     return std::nullopt;
   }
-  std::optional<Node> node = parse(value, mark.file, false, diags);
+  std::optional<Node> node = parse(value, mark.file, false, budget, diags);
   if (node) set_marks(*node, mark);
   return node;
 }
@@ -187,26 +251,38 @@ fs::path absolute_folder(const fs::path& folder) {
 
 }  // namespace
 
-std::optional<Node> load_tree(const std::string& path, Diagnostics& diags) {
-  return Includer(diags).load(path, std::nullopt);
+std::optional<Node> load_tree(const std::string& path,
+                              const std::vector<std::string>& include_paths, Budget& budget,
+                              Diagnostics& diags) {
+  return Includer(path, include_paths, budget, diags).load(path, std::nullopt);
 }
 
 std::optional<Node> load_tree_text(const std::string& text, const std::string& path,
+                                   const std::vector<std::string>& include_paths, Budget& budget,
                                    Diagnostics& diags) {
-  return Includer(diags).load_text(text, path, {path, 0, 0});
+  return Includer(path, include_paths, budget, diags).load_text(text, path, {path, 0, 0});
 }
 
 void apply_override(Node& root, const std::string& key_path, const std::string& value, int ordinal,
-                    Diagnostics& diags) {
+                    Budget& budget, Diagnostics& diags) {
   const Mark mark{"--set", ordinal, 1};
+  const std::string shown = excerpt(key_path, limits::kPathBytes);
+  if (key_path.size() > limits::kPathBytes)
+    return diags.error(mark, shown,
+                       "a key path longer than " + std::to_string(limits::kPathBytes) +
+                           " characters, expected a shorter one");
   const std::vector<std::string> segments = split_path(key_path);
   const bool blank =
       std::any_of(segments.begin(), segments.end(), [](const auto& s) { return s.empty(); });
   if (segments.empty() || blank)
     return diags.error(mark, key_path, "invalid override path, expected key.path=value");
+  if (segments.size() > std::size_t(limits::kNesting))
+    return diags.error(mark, shown,
+                       "a key path of " + std::to_string(segments.size()) +
+                           " segments, expected at most " + std::to_string(limits::kNesting));
   if (segments.front() == "include")
     return diags.error(mark, key_path, "includes cannot be overridden, expected a scene key");
-  std::optional<Node> replacement = parse_value(value, mark, diags);
+  std::optional<Node> replacement = parse_value(value, mark, budget, diags);
   if (!replacement) return;
   Node* n = &root;
   std::string walked;
@@ -224,7 +300,7 @@ void apply_override(Node& root, const std::string& key_path, const std::string& 
       const auto index = find_item(*n, s);
       if (!index)
         return diags.error(mark, key_path,
-                           "invalid override path: '" + walked + "' has no item '" + s +
+                           "invalid override path: '" + walked + "' has no item '" + excerpt(s) +
                                "', expected an index below " + std::to_string(n->items.size()) +
                                " or the name of an item");
       n = &n->items[*index];
@@ -236,6 +312,13 @@ void apply_override(Node& root, const std::string& key_path, const std::string& 
     walked += (walked.empty() ? "" : ".") + s;
   }
   *n = std::move(*replacement);
+}
+
+std::string too_large(const std::filesystem::path& file, std::uintmax_t max_bytes) {
+  std::error_code ec;
+  const std::uintmax_t size = fs::file_size(file, ec);
+  if (ec || size <= max_bytes) return "";
+  return std::to_string(size) + " bytes, expected at most " + std::to_string(max_bytes);
 }
 
 void rebase_paths(Node& root, const std::string& scene_path) {

@@ -29,12 +29,12 @@ void set_key(Node& root, const std::string& key, nlohmann::ordered_json value, c
 // Everything after reading the files: overrides, defaults, the resolved
 // text, units, validation, compilation. Throws SceneError.
 Simulation finish(std::optional<Node> tree, const std::string& path, const LoadOptions& options,
-                  Diagnostics& diags) {
+                  Budget& budget, Diagnostics& diags) {
   if (!tree) diags.raise();
   Node& root = *tree;
   for (std::size_t i = 0; i < options.overrides.size(); ++i)
     apply_override(root, options.overrides[i].first, options.overrides[i].second, int(i + 1),
-                   diags);
+                   budget, diags);
   if (options.seed) set_key(root, "seed", *options.seed, {"--seed", 0, 0});
   if (!root.find("name"))
     set_key(root, "name", std::filesystem::path(path).stem().string(), root.mark);
@@ -47,6 +47,9 @@ Simulation finish(std::optional<Node> tree, const std::string& path, const LoadO
   if (!diags.empty()) diags.raise();  // the compiler relies on a valid tree
   Simulation sim = compile(root, path, diags);
   if (!diags.empty()) diags.raise();
+  if (options.warnings)
+    options.warnings->insert(options.warnings->end(), diags.warnings().begin(),
+                             diags.warnings().end());
   sim.resolved_yaml = resolved;
   sim.scene_hash = fnv1a_hex(resolved);
   if (options.threads) sim.model->threads = *options.threads;
@@ -57,12 +60,16 @@ Simulation finish(std::optional<Node> tree, const std::string& path, const LoadO
 
 Simulation load(const std::string& path, const LoadOptions& options) {
   Diagnostics diags;
-  return finish(load_tree(path, diags), path, options, diags);
+  Budget budget;
+  return finish(load_tree(path, options.include_paths, budget, diags), path, options, budget,
+                diags);
 }
 
 Simulation load_text(const std::string& text, const std::string& path, const LoadOptions& options) {
   Diagnostics diags;
-  return finish(load_tree_text(text, path, diags), path, options, diags);
+  Budget budget;
+  return finish(load_tree_text(text, path, options.include_paths, budget, diags), path, options,
+                budget, diags);
 }
 
 }  // namespace ces::scene

@@ -29,8 +29,10 @@ struct Diagnostic {
   int column = 0;    // 1-based; 0 when unknown
   std::string path;  // key path, e.g. "materials.copper.density", "bodies[0].name"
   std::string message;
-  // "file:line:col: key.path: message". --set overrides are reported as
-  // file "--set", line = the override's position on the command line.
+  bool warning = false;  // the scene loads all the same
+  // "file:line:col: key.path: message" ("file:line:col: warning: ..."), on
+  // one line. --set overrides are reported as file "--set", line = the
+  // override's position on the command line.
   std::string str() const;
 };
 
@@ -49,6 +51,11 @@ struct LoadOptions {
   std::vector<std::pair<std::string, std::string>> overrides;
   std::optional<std::uint64_t> seed;  // --seed, wins over the scene's
   std::optional<int> threads;         // --threads
+  // --include-path: folders includes may come from besides the scene's own.
+  std::vector<std::string> include_paths;
+  // Where warnings go (a scene that loads but likely does not do what was
+  // meant, as feeds without gravity); nullptr: they are dropped.
+  std::vector<Diagnostic>* warnings = nullptr;
 };
 
 // Parses, resolves includes and overrides, validates against the schema and

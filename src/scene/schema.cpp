@@ -11,6 +11,7 @@
 
 #include "scene/diagnostics.hpp"
 #include "scene/schema_text.hpp"  // generated from schema/scene.schema.json
+#include "scene/text.hpp"
 #include "scene/units.hpp"
 
 namespace ces::scene {
@@ -83,7 +84,9 @@ std::string describe_kinds(const std::vector<const units::Kind*>& kinds) {
   return one_of(labels) + ", e.g. " + one_of(examples);
 }
 
+// Whole numbers in full ("1000000", not "1e+06"): bounds read as written.
 std::string format_number(double x) {
+  if (x == std::floor(x) && std::abs(x) < 1e15) return std::to_string(static_cast<long long>(x));
   std::ostringstream s;
   s << x;
   return s.str();
@@ -133,12 +136,14 @@ void add_defaults(Node& n, const ojson* s) {
 }
 
 void convert_quantity(Node& n, const ojson* s, Diagnostics& diags) {
-  if (!s || n.kind != Node::Kind::Scalar) return;
+  if (!s || n.kind != Node::Kind::Scalar || n.reported) return;
   const auto kinds = unit_kinds(*s);
   if (kinds.empty()) return;
   if (n.is_number()) {
+    // Zero is zero in every unit; another bare number could mean V or kV,
+    // rpm or rad/s, a mass rate or a count rate.
     const ojson* required = keyword(*s, "x-unit-required");
-    if (required && required->get<bool>())
+    if (required && required->get<bool>() && n.number() != 0.0)
       diags.error(n,
                   "a number without a unit is ambiguous here, expected " + describe_kinds(kinds));
     return;
@@ -146,7 +151,7 @@ void convert_quantity(Node& n, const ojson* s, Diagnostics& diags) {
   if (!n.is_string()) return;  // booleans: the schema reports the type
   const auto parsed = units::parse(n.string());
   if (const auto* error = std::get_if<std::string>(&parsed)) {
-    diags.error(n, "'" + n.text + "': " + *error + ", expected " + describe_kinds(kinds));
+    diags.error(n, "'" + excerpt(n.text) + "': " + *error + ", expected " + describe_kinds(kinds));
     return;
   }
   const auto& q = std::get<units::Quantity>(parsed);
@@ -157,7 +162,7 @@ void convert_quantity(Node& n, const ojson* s, Diagnostics& diags) {
       return;
     }
   }
-  diags.error(n, "'" + n.text + "' is " + units::describe(q.dimension) + ", expected " +
+  diags.error(n, "'" + excerpt(n.text) + "' is " + units::describe(q.dimension) + ", expected " +
                      describe_kinds(kinds));
 }
 
@@ -209,7 +214,7 @@ std::string child_path(const Node& parent, const std::string& key) {
 
 // "'-1 mm'" for unit strings, "-1" for numbers.
 std::string written(const Node& n) {
-  return n.dimension.empty() ? describe(n) : "'" + n.text + "'";
+  return n.dimension.empty() ? describe(n) : "'" + excerpt(n.text) + "'";
 }
 
 // The bound a number breaks: "> 0 m", ">= 0", "<= 1".
@@ -256,7 +261,7 @@ class ErrorMapper {
     const Located at = locate(root_, error.context);
     if (!at.node || at.quiet) return;
     const std::string& d = error.description;
-    if (d.starts_with("Object contains a property")) return unknown_key(at, quoted(d));
+    if (d.starts_with("Object contains a property")) return unknown_keys(at);
     if (d.starts_with("Missing required property")) return missing_key(at, quoted(d));
     if (!at.schema || is_cascade(d) || !value_errors_.insert(at.node).second) return;
     diags_.error(*at.node, value_message(*at.node, *at.schema, d));
@@ -269,15 +274,19 @@ class ErrorMapper {
            d.starts_with("Failed to validate against") || d.starts_with("Cannot validate item");
   }
 
-  void unknown_key(const Located& at, const std::string& key) {
-    const Entry* e = at.node->entry(key);
-    if (!e || e->value.reported) return;
-    const std::vector<std::string> allowed =
-        at.schema ? property_names(*at.schema) : std::vector<std::string>{};
-    std::string message = "unknown key '" + key + "'";
-    const std::string guess = did_you_mean(key, allowed);
-    message += guess.empty() ? ", expected " + one_of(allowed) : guess;
-    diags_.error(e->key_mark, child_path(*at.node, key), message);
+  // valijson names only the first key it does not know, and quotes it
+  // without escaping ("'typo'd key'"): every key of the mapping is checked
+  // here instead, once per mapping.
+  void unknown_keys(const Located& at) {
+    if (!at.schema || !unknown_checked_.insert(at.node).second) return;
+    const std::vector<std::string> allowed = property_names(*at.schema);
+    for (const Entry& e : at.node->entries) {
+      if (e.value.reported || property_schema(*at.schema, e.key)) continue;
+      std::string message = "unknown key '" + excerpt(e.key) + "'";
+      const std::string guess = did_you_mean(e.key, allowed);
+      message += guess.empty() ? ", expected " + one_of(allowed) : guess;
+      diags_.error(e.key_mark, child_path(*at.node, e.key), message);
+    }
   }
 
   void missing_key(const Located& at, const std::string& key) {
@@ -324,6 +333,7 @@ class ErrorMapper {
   const Node& root_;
   Diagnostics& diags_;
   std::set<const Node*> value_errors_;  // one value complaint per node is enough
+  std::set<const Node*> unknown_checked_;
 };
 
 }  // namespace

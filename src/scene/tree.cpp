@@ -2,18 +2,56 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
+#include <cstdio>
 #include <map>
-#include <regex>
 #include <stdexcept>
 
 #include "scene/diagnostics.hpp"
+#include "scene/limits.hpp"
+#include "scene/text.hpp"
 
 namespace ces::scene {
 namespace {
 
-// Number from a plain scalar known to match the YAML 1.2 core schema.
-nlohmann::json parse_number(const std::string& s, bool integer) {
+bool is_digit(char c) { return c >= '0' && c <= '9'; }
+
+std::size_t skip_digits(std::string_view s, std::size_t i) {
+  while (i < s.size() && is_digit(s[i])) ++i;
+  return i;
+}
+
+std::size_t skip_sign(std::string_view s, std::size_t i) {
+  return i < s.size() && (s[i] == '-' || s[i] == '+') ? i + 1 : i;
+}
+
+// [-+]?[0-9]+ (YAML 1.2 core schema). Matched by hand: std::regex recurses
+// per character and overflows the stack on long scalars.
+bool is_core_int(std::string_view s) {
+  const std::size_t i = skip_sign(s, 0);
+  return i < s.size() && skip_digits(s, i) == s.size();
+}
+
+// [-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)?
+bool is_core_float(std::string_view s) {
+  std::size_t i = skip_sign(s, 0);
+  const std::size_t int_end = skip_digits(s, i);
+  std::size_t end = int_end;
+  if (end < s.size() && s[end] == '.') end = skip_digits(s, end + 1);
+  if (int_end == i && end <= int_end + 1) return false;  // no digit before the exponent
+  if (end < s.size() && (s[end] == 'e' || s[end] == 'E')) {
+    const std::size_t first = skip_sign(s, end + 1);
+    end = skip_digits(s, first);
+    if (end == first) return false;
+  }
+  return end == s.size();
+}
+
+// Number from a plain scalar known to match the YAML 1.2 core schema;
+// nullopt when no double holds it (an underflow is not a zero).
+std::optional<nlohmann::json> parse_number(const std::string& s, bool integer) {
   const char* first = s.data() + (s[0] == '+' ? 1 : 0);
   const char* last = s.data() + s.size();
   if (integer) {
@@ -23,59 +61,135 @@ nlohmann::json parse_number(const std::string& s, bool integer) {
     if (std::from_chars(first, last, u).ec == std::errc()) return u;
   }
   double d = 0.0;
-  if (std::from_chars(first, last, d).ec == std::errc()) return d;
-  return s;  // out of range: left as text, the schema reports its type
+  const auto [end, ec] = std::from_chars(first, last, d);
+  const std::string_view mantissa = std::string_view(s).substr(0, s.find_first_of("eE"));
+  const bool zero = mantissa.find_first_of("123456789") == std::string_view::npos;
+  if (ec != std::errc() || end != last || !std::isfinite(d) ||
+      (d == 0.0 ? !zero : !std::isnormal(d)))
+    return std::nullopt;
+  return d;
 }
 
 // Types of plain (unquoted) scalars by the YAML 1.2 core schema, which is
 // also what JSON means: "1 ms" stays a string, "1e-3" is a number, "yes" is
-// a string (not a YAML 1.1 boolean).
-nlohmann::json resolve_plain(const std::string& s) {
-  static const std::regex kInt("[-+]?[0-9]+");
-  static const std::regex kFloat(R"([-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)?)");
+// a string (not a YAML 1.1 boolean). nullopt: a number out of range.
+std::optional<nlohmann::json> resolve_plain(const std::string& s) {
   if (s == "true" || s == "True" || s == "TRUE") return true;
   if (s == "false" || s == "False" || s == "FALSE") return false;
-  if (std::regex_match(s, kInt)) return parse_number(s, true);
-  if (std::regex_match(s, kFloat)) return parse_number(s, false);
+  if (is_core_int(s)) return parse_number(s, true);
+  if (is_core_float(s)) return parse_number(s, false);
   return s;
+}
+
+// The place of byte `offset` of `text`.
+Mark mark_at(const std::string& text, std::size_t offset, const std::string& file) {
+  const auto at = text.begin() + std::ptrdiff_t(offset);
+  const auto line_start = std::find(std::make_reverse_iterator(at), text.rend(), '\n').base();
+  return {file, int(std::count(text.begin(), at, '\n')) + 1, int(at - line_start) + 1};
 }
 
 class Converter {
  public:
-  Converter(const std::string& file, Diagnostics& diags) : file_(file), diags_(diags) {}
+  Converter(const std::string& text, const std::string& file, Budget& budget, Diagnostics& diags)
+      : text_(text), file_(file), budget_(budget), diags_(diags) {}
 
   Mark mark(const YAML::Mark& m) const { return {file_, m.line + 1, m.column + 1}; }
 
+  // True when a bound was broken (reported): the tree is then incomplete.
+  bool stopped() const { return stopped_; }
+
   // `holder` is where the user sees the value start: the key for values in
   // a mapping (yaml-cpp marks an empty value at the next token). `path`
-  // names the value in duplicate-key messages.
-  Node convert(const YAML::Node& y, const Mark& holder, const std::string& path = "") {
+  // names the value in messages; `depth` counts the collections around it.
+  Node convert(const YAML::Node& y, const Mark& holder, const std::string& path = "",
+               int depth = 0) {
     Node n;
     n.mark = holder;
+    if (!admit(y, holder, path, depth)) return n;
     if (y.IsScalar()) {
       n.kind = Node::Kind::Scalar;
       n.mark = mark(y.Mark());
       n.text = y.Scalar();
       const bool quoted = y.Tag() == "!" || y.Tag() == "tag:yaml.org,2002:str";
-      n.scalar = quoted ? nlohmann::json(n.text) : resolve_plain(n.text);
+      std::optional<nlohmann::json> value = quoted ? nlohmann::json(n.text) : resolve_plain(n.text);
+      n.scalar = value ? std::move(*value) : nlohmann::json(n.text);
+      n.text = as_shown(y);
+      if (!value) {
+        diags_.error(n.mark, path,
+                     excerpt(n.text) +
+                         " is out of range, expected a number of magnitude "
+                         "2.2e-308 to 1.8e308, or 0");
+        n.reported = true;
+      }
     } else if (y.IsSequence()) {
       n.kind = Node::Kind::Sequence;
-      for (const YAML::Node& item : y)
-        n.items.push_back(
-            convert(item, mark(item.Mark()), path + "[" + std::to_string(n.items.size()) + "]"));
+      for (const YAML::Node& item : y) {
+        const std::string item_path = path + "[" + std::to_string(n.items.size()) + "]";
+        n.items.push_back(convert(item, mark(item.Mark()), item_path, depth + 1));
+        if (stopped_) break;
+      }
     } else if (y.IsMap()) {
       n.kind = Node::Kind::Map;
-      convert_map(y, n, path);
+      convert_map(y, n, path, depth);
     }
     return n;
   }
 
  private:
+  // Counts a value against the load's budget and checks the bounds on
+  // nesting and key paths; false (reported once) when one is broken.
+  bool admit(const YAML::Node& y, const Mark& holder, const std::string& path, int depth) {
+    if (stopped_) return false;
+    const std::size_t bytes = path.size() + (y.IsScalar() ? y.Scalar().size() : 0);
+    std::string broken;
+    if (depth > limits::kNesting) {
+      broken = "nested deeper than " + std::to_string(limits::kNesting) +
+               " levels, expected at most " + std::to_string(limits::kNesting) +
+               " levels of mappings and lists";
+    } else if (path.size() > limits::kPathBytes) {
+      broken = "a key path longer than " + std::to_string(limits::kPathBytes) +
+               " characters, expected shorter keys or less nesting";
+    } else if (y.IsMap() && y.size() > limits::kKeys) {
+      broken = "a mapping of " + std::to_string(y.size()) + " keys, expected at most " +
+               std::to_string(limits::kKeys);
+    } else if (budget_.values == 0 || budget_.text_bytes < bytes) {
+      broken = "the scene expands to more than " + std::to_string(limits::kValues) + " values or " +
+               std::to_string(limits::kTextBytes >> 20) +
+               " MB of text (each use of a YAML alias counts its value again), expected a "
+               "smaller scene";
+    }
+    if (broken.empty()) {
+      --budget_.values;
+      budget_.text_bytes -= bytes;
+      return true;
+    }
+    const Mark at = y.IsScalar() || y.IsNull() ? mark(y.Mark()) : holder;
+    diags_.error(at, excerpt(path, limits::kPathBytes), broken);
+    stopped_ = true;
+    return false;
+  }
+
+  // A scalar for messages, as far as its first line in the file goes: a
+  // value folded from several lines (a file that is not a scene, included
+  // by mistake) shows that line only.
+  std::string as_shown(const YAML::Node& y) const {
+    const std::string& value = y.Scalar();
+    std::size_t pos = std::min<std::size_t>(std::size_t(std::max(y.Mark().pos, 0)), text_.size());
+    // A block scalar ("|", ">") starts on the line after its indicator.
+    if (pos < text_.size() && (text_[pos] == '|' || text_[pos] == '>'))
+      pos = text_.find_first_not_of(" \t", std::min(text_.find('\n', pos), text_.size() - 1) + 1);
+    pos = std::min(pos, text_.size());
+    const std::size_t end = std::min(text_.find('\n', pos), text_.size());
+    const std::size_t room = std::max<std::size_t>(end - pos, 1);
+    if (value.size() <= room && value.find('\n') == std::string::npos) return value;
+    return excerpt(value, room);
+  }
+
   // yaml-cpp keeps every duplicate key; the first one wins, the others are
   // reported (they are almost always a forgotten edit).
-  void convert_map(const YAML::Node& y, Node& n, const std::string& path) {
+  void convert_map(const YAML::Node& y, Node& n, const std::string& path, int depth) {
     std::map<std::string, Mark> seen;
-    for (auto it = y.begin(); it != y.end(); ++it) {
+    for (auto it = y.begin(); it != y.end() && !stopped_; ++it) {
       const Mark key_mark = mark(it->first.Mark());
       if (!it->first.IsScalar()) {
         diags_.error(key_mark, "", "keys must be plain names, not lists or mappings");
@@ -85,30 +199,71 @@ class Converter {
       const std::string key_path = path.empty() ? key : path + "." + key;
       const auto [first, inserted] = seen.emplace(key, key_mark);
       if (!inserted) {
-        diags_.error(key_mark, key_path,
-                     "duplicate key '" + key + "', first given at line " +
+        diags_.error(key_mark, excerpt(key_path, limits::kPathBytes),
+                     "duplicate key '" + excerpt(key) + "', first given at line " +
                          std::to_string(first->second.line));
         continue;
       }
-      n.entries.push_back({key, key_mark, convert(it->second, key_mark, key_path)});
+      n.entries.push_back({key, key_mark, convert(it->second, key_mark, key_path, depth + 1)});
     }
   }
 
+  const std::string& text_;
   const std::string& file_;
+  Budget& budget_;
   Diagnostics& diags_;
+  bool stopped_ = false;
 };
 
-// nlohmann names the place as "at line L, column C: "; keep the rest.
-void report_json_error(const nlohmann::json::exception& e, const std::string& file,
-                       Diagnostics& diags) {
-  static const std::regex kWhere(R"(line (\d+), column (\d+): (.*))");
-  std::smatch m;
-  const std::string what = e.what();
-  if (std::regex_search(what, m, kWhere))
-    diags.error({file, std::stoi(m[1]), std::stoi(m[2])}, "", "invalid JSON: " + m[3].str());
-  else
-    diags.error({file, 0, 0}, "", "invalid JSON: " + what);
-}
+// Checks the syntax of a JSON text without building anything, so that
+// nesting or size cost no memory; errors get the place nlohmann gives.
+class JsonChecker : public nlohmann::json::json_sax_t {
+ public:
+  JsonChecker(const std::string& text, const std::string& file, Diagnostics& diags)
+      : text_(text), file_(file), diags_(diags) {}
+
+  bool null() override { return true; }
+  bool boolean(bool) override { return true; }
+  bool number_integer(number_integer_t) override { return true; }
+  bool number_unsigned(number_unsigned_t) override { return true; }
+  bool number_float(number_float_t, const string_t&) override { return true; }
+  bool string(string_t&) override { return true; }
+  bool binary(binary_t&) override { return true; }
+  // Past the nesting bound the check stops: the YAML pass reports the
+  // bound with its line.
+  bool start_object(std::size_t) override { return ++depth_ <= limits::kNesting + 1; }
+  bool key(string_t&) override { return true; }
+  bool end_object() override { return --depth_, true; }
+  bool start_array(std::size_t) override { return ++depth_ <= limits::kNesting + 1; }
+  bool end_array() override { return --depth_, true; }
+
+  // `position` counts the bytes read, the offending one last. nlohmann's
+  // message ("[json.exception...] parse error at line L, column C: what;
+  // last read: 'token'") keeps its words; the token is cut to an excerpt.
+  bool parse_error(std::size_t position, const std::string& last_token,
+                   const nlohmann::detail::exception& e) override {
+    std::string what = e.what();
+    if (const auto where = what.find(", column "); where != std::string::npos)
+      what = what.substr(what.find(": ", where) + 2);
+    else if (const auto tag = what.find("] "); tag != std::string::npos)
+      what = what.substr(tag + 2);
+    if (const auto read = what.find("; last read: "); read != std::string::npos)
+      what = what.substr(0, read) + "; last read: '" + excerpt(last_token) + "'";
+    const std::size_t offset = std::min(position, text_.size());
+    diags_.error(mark_at(text_, offset == 0 ? 0 : offset - 1, file_), "", "invalid JSON: " + what);
+    reported_ = true;
+    return false;
+  }
+
+  bool reported() const { return reported_; }
+
+ private:
+  const std::string& text_;
+  const std::string& file_;
+  Diagnostics& diags_;
+  int depth_ = 0;
+  bool reported_ = false;
+};
 
 void emit(YAML::Emitter& out, const Node& n) {
   switch (n.kind) {
@@ -164,18 +319,37 @@ const Node& Node::at(std::string_view key) const {
 }
 
 std::optional<Node> parse(const std::string& text, const std::string& file, bool json,
-                          Diagnostics& diags) {
+                          Budget& budget, Diagnostics& diags) {
+  if (text.size() > limits::kFileBytes) {
+    diags.error({file, 1, 1}, "",
+                "the file has " + std::to_string(text.size()) + " bytes, expected at most " +
+                    std::to_string(limits::kFileBytes));
+    return std::nullopt;
+  }
+  const auto bad_byte = [&](std::size_t at, const char* what, const char* expected) {
+    char byte[8];
+    std::snprintf(byte, sizeof byte, "0x%02x", static_cast<unsigned char>(text[at]));
+    diags.error(mark_at(text, at, file), "",
+                std::string(what) + " (byte " + byte + "), expected " + expected);
+  };
+  if (const auto at = invalid_utf8(text)) {
+    bad_byte(*at, "invalid UTF-8", "UTF-8 text");
+    return std::nullopt;
+  }
+  if (const auto at = control_character(text)) {
+    bad_byte(*at, "a control character", "printable text");
+    return std::nullopt;
+  }
   if (json) {
-    try {
-      [[maybe_unused]] const nlohmann::json strict = nlohmann::json::parse(text);
-    } catch (const nlohmann::json::exception& e) {  // syntax, or a number out of range
-      report_json_error(e, file, diags);
-      return std::nullopt;
-    }
+    JsonChecker checker(text, file, diags);
+    if (!nlohmann::json::sax_parse(text, &checker) && checker.reported()) return std::nullopt;
   }
   try {
     const YAML::Node root = YAML::Load(text);
-    return Converter(file, diags).convert(root, {file, 1, 1});
+    Converter converter(text, file, budget, diags);
+    Node tree = converter.convert(root, {file, 1, 1});
+    if (converter.stopped()) return std::nullopt;
+    return tree;
   } catch (const YAML::Exception& e) {
     diags.error({file, e.mark.line + 1, e.mark.column + 1}, "", "invalid YAML: " + e.msg);
     return std::nullopt;
@@ -245,7 +419,7 @@ std::string describe(const Node& node) {
     case Node::Kind::Scalar:
       break;
   }
-  return node.scalar.is_string() ? "'" + node.text + "'" : node.text;
+  return node.scalar.is_string() ? "'" + excerpt(node.text) + "'" : excerpt(node.text);
 }
 
 }  // namespace ces::scene

@@ -9,6 +9,8 @@
 #include <string_view>
 #include <vector>
 
+#include "scene/limits.hpp"
+
 namespace ces::scene {
 
 class Diagnostics;
@@ -57,10 +59,19 @@ struct Entry {
   Node value;
 };
 
-// Parses a YAML or (json = true) JSON document. Syntax errors and duplicate
-// keys go to `diags`; returns nullopt when nothing usable was read.
+// What one load may still build, shared by its files and --set values
+// (limits.hpp): alias expansion and includes cannot make it unbounded.
+struct Budget {
+  std::size_t values = limits::kValues;
+  std::size_t text_bytes = limits::kTextBytes;
+  int files = limits::kIncludeFiles;
+};
+
+// Parses a YAML or (json = true) JSON document. Syntax errors, invalid
+// UTF-8, numbers out of range, duplicate keys and broken bounds go to
+// `diags`; returns nullopt when nothing usable was read.
 std::optional<Node> parse(const std::string& text, const std::string& file, bool json,
-                          Diagnostics& diags);
+                          Budget& budget, Diagnostics& diags);
 
 // A tree from a JSON value (schema defaults); every node gets `mark`.
 Node from_json(const nlohmann::ordered_json& value, const Mark& mark);

@@ -2,6 +2,8 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <numbers>
 #include <optional>
 #include <vector>
@@ -82,16 +84,28 @@ constexpr std::array kPrefixes = {
     Prefix{"u", -6}, Prefix{"\u00b5", -6}, Prefix{"\u03bc", -6}, Prefix{"n", -9}, Prefix{"p", -12},
 };
 
+// Bounds that keep a unit expression's arithmetic exact and in range: no
+// unit of a scene needs a power beyond 4, and no prefix chain moves the
+// decimal exponent by more than a few dozen.
+constexpr int kMaxPower = 16;
+constexpr int kMaxDecimal = 1000;
+
 // A unit expression's running product.
 struct Scale {
   D dimension;
   int decimal = 0;
   double factor = 1.0;
 
-  void multiply(const Symbol& s, int power) {
-    for (int i = 0; i < D::kCount; ++i) dimension.exponent[i] += power * s.dimension.exponent[i];
+  // False when a dimension's exponent or the decimal exponent leaves its
+  // bound (|power| <= kMaxPower keeps every product below in int range).
+  bool multiply(const Symbol& s, int power) {
+    for (int i = 0; i < D::kCount; ++i) {
+      dimension.exponent[i] += power * s.dimension.exponent[i];
+      if (std::abs(dimension.exponent[i]) > kMaxPower) return false;
+    }
     decimal += power * s.decimal;
     factor *= std::pow(s.factor, power);
+    return std::abs(decimal) <= kMaxDecimal;
   }
 };
 
@@ -116,9 +130,26 @@ std::size_t skip_digits(std::string_view s, std::size_t i) {
   return i;
 }
 
+// Decimal exponents beyond this cannot make a finite, non-zero double
+// whatever the mantissa (a scene's numbers are far shorter).
+constexpr std::int64_t kMaxExponent = 100000;
+
+// The integer in text[first, last) if all of it is one within +-limit.
+std::optional<std::int64_t> read_integer(std::string_view text, std::size_t first, std::size_t last,
+                                         std::int64_t limit) {
+  const char* begin = text.data() + first + (first < last && text[first] == '+' ? 1 : 0);
+  std::int64_t value = 0;
+  const auto [end, ec] = std::from_chars(begin, text.data() + last, value);
+  if (ec != std::errc() || end != text.data() + last || value > limit || value < -limit)
+    return std::nullopt;
+  return value;
+}
+
 // The decimal number at the start of `text`: mantissa (sign and digits, no
-// exponent) and exponent kept apart. Returns the length read, 0 if none.
-std::size_t read_number(std::string_view text, std::string& mantissa, int& exponent) {
+// exponent) and exponent kept apart. Returns the length read, 0 if none;
+// `exponent` is nullopt when it is out of any double's range.
+std::size_t read_number(std::string_view text, std::string& mantissa,
+                        std::optional<std::int64_t>& exponent) {
   std::size_t i = 0;
   if (i < text.size() && (text[i] == '-' || text[i] == '+')) ++i;
   const std::size_t int_end = skip_digits(text, i);
@@ -133,15 +164,21 @@ std::size_t read_number(std::string_view text, std::string& mantissa, int& expon
     if (j < text.size() && (text[j] == '-' || text[j] == '+')) ++j;
     const std::size_t exp_end = skip_digits(text, j);
     if (exp_end > j) {
-      const char* first = text.data() + end + 1 + (text[end + 1] == '+' ? 1 : 0);
-      std::from_chars(first, text.data() + exp_end, exponent);
+      exponent = read_integer(text, end + 1, exp_end, kMaxExponent);
       end = exp_end;
     }
   }
   return end;
 }
 
+bool all_zero(const std::string& mantissa) {
+  return mantissa.find_first_of("123456789") == std::string::npos;
+}
+
 bool is_operator(char c) { return c == ' ' || c == '\t' || c == '/' || c == '*' || c == '^'; }
+
+const std::string kPowerBound = "a unit power beyond " + std::to_string(kMaxPower) +
+                                " (or a scaling beyond 1e" + std::to_string(kMaxDecimal) + ")";
 
 // Parses "kg/m^3", "N m", "/s", "1/s" into a Scale.
 std::variant<Scale, std::string> parse_unit(std::string_view text) {
@@ -171,13 +208,15 @@ std::variant<Scale, std::string> parse_unit(std::string_view text) {
       if (p < text.size() && text[p] == '-') ++p;
       const std::size_t p_end = skip_digits(text, p);
       if (p_end == p) return "'^' must be followed by an integer power";
-      std::from_chars(text.data() + end + 1, text.data() + p_end, power);
+      const auto written = read_integer(text, end + 1, p_end, kMaxPower);
+      if (!written) return kPowerBound;
+      power = int(*written);
       end = p_end;
     }
     if (name == "1") {
       if (power != 1) return std::string("'1' cannot be raised to a power");
     } else if (auto symbol = find_symbol(name)) {
-      scale.multiply(*symbol, sign * power);
+      if (!scale.multiply(*symbol, sign * power)) return kPowerBound;
     } else if (name.empty()) {
       return std::string("missing unit before '^'");
     } else {
@@ -212,6 +251,9 @@ std::string format(const Dimension& d) {
   return (up.empty() ? "1" : up) + "/" + down;
 }
 
+const std::string kOutOfRange =
+    "number out of range (in SI units a magnitude from 2.2e-308 to 1.8e308, or 0)";
+
 }  // namespace
 
 const Kind* find_kind(std::string_view name) {
@@ -224,20 +266,24 @@ std::variant<Quantity, std::string> parse(std::string_view text) {
   while (!text.empty() && (text.front() == ' ' || text.front() == '\t')) text.remove_prefix(1);
   while (!text.empty() && (text.back() == ' ' || text.back() == '\t')) text.remove_suffix(1);
   std::string mantissa;
-  int exponent = 0;
+  std::optional<std::int64_t> exponent;
   const std::size_t used = read_number(text, mantissa, exponent);
   if (used == 0) return std::string("does not start with a number");
   auto unit = parse_unit(text.substr(used));
   if (auto* error = std::get_if<std::string>(&unit)) return *error;
   const Scale& scale = std::get<Scale>(unit);
+  if (!exponent) return kOutOfRange;
   // Shifting the decimal exponent and converting once rounds once, so the
   // result equals the SI value written out in decimal.
-  const std::string decimal = mantissa + "e" + std::to_string(exponent + scale.decimal);
+  const std::string decimal = mantissa + "e" + std::to_string(*exponent + scale.decimal);
   double value = 0.0;
   const auto [end, ec] = std::from_chars(decimal.data(), decimal.data() + decimal.size(), value);
-  if (ec != std::errc() || end != decimal.data() + decimal.size() || !std::isfinite(value))
-    return std::string("number out of range");
-  return Quantity{value * scale.factor, scale.dimension};
+  if (ec != std::errc() || end != decimal.data() + decimal.size()) return kOutOfRange;
+  value *= scale.factor;
+  // Zero only when written as zero: an underflow is not a zero.
+  if (!std::isfinite(value) || (value == 0.0 ? !all_zero(mantissa) : !std::isnormal(value)))
+    return kOutOfRange;
+  return Quantity{value, scale.dimension};
 }
 
 std::string describe(const Dimension& dimension) {

@@ -393,6 +393,8 @@ std::vector<std::string> case_arguments(const Options& o, const Case& c) {
       args.push_back(k + "=" + v);
     }
   if (o.seed) args.insert(args.end(), {"--seed", std::to_string(*o.seed)});
+  for (const std::string& folder : o.include_paths)
+    args.insert(args.end(), {"--include-path", folder});
   return args;
 }
 
@@ -403,6 +405,7 @@ std::size_t finest_case(const Options& o, const std::vector<Case>& cases) {
   for (const Case& c : cases) {
     scene::LoadOptions lo;
     lo.overrides = o.base_sets;
+    lo.include_paths = o.include_paths;
     lo.overrides.insert(lo.overrides.end(), c.sets.begin(), c.sets.end());
     const Simulation sim = scene::load(o.scene, lo);
     // DVI before DEM (the method under study; a DEM run at its tiny step is

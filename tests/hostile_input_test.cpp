@@ -1,0 +1,352 @@
+// Scenes written to hurt: include chains and fan-outs, --set paths, files
+// and documents past the bounds of scene/limits.hpp, includes that leave the
+// scene's folder, messages that would quote files. Each must end in a clean
+// SceneError naming the place, never a crash, a hang or a large allocation.
+// (Single-file cases are in tests/bad_scenes/, checked by scene_test.cpp.)
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "scene/limits.hpp"
+#include "scene/scene.hpp"
+#include "support.hpp"
+
+namespace ces::scene {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kMinimal = "ces_sim: 1\ntime: {step: 1 ms, end: 0.1 s}\n";
+
+fs::path write(const fs::path& p, const std::string& text) {
+  fs::create_directories(p.parent_path());
+  std::ofstream(p, std::ios::binary) << text;
+  return p;
+}
+
+std::vector<Diagnostic> load_errors(const fs::path& path, const LoadOptions& options = {}) {
+  try {
+    load(path.string(), options);
+  } catch (const SceneError& e) {
+    return e.diagnostics();
+  }
+  ADD_FAILURE() << path << " loaded without errors";
+  return {};
+}
+
+std::vector<Diagnostic> text_errors(const std::string& text, const std::string& name,
+                                    const LoadOptions& options = {}) {
+  try {
+    load_text(text, (test::fresh_dir("hostile_text") / name).string(), options);
+  } catch (const SceneError& e) {
+    return e.diagnostics();
+  }
+  ADD_FAILURE() << name << " loaded without errors";
+  return {};
+}
+
+std::string all(const std::vector<Diagnostic>& list) {
+  std::string s;
+  for (const Diagnostic& d : list) s += d.str() + "\n";
+  return s;
+}
+
+// Exactly one diagnostic, containing `message`.
+void expect_one(const std::vector<Diagnostic>& errors, const std::string& message) {
+  ASSERT_EQ(errors.size(), 1u) << all(errors);
+  EXPECT_NE(errors[0].str().find(message), std::string::npos) << all(errors);
+  EXPECT_GT(errors[0].line, 0) << all(errors);
+}
+
+// ------------------------------------------------------------------ includes
+
+// "f12.yaml" (built by appending: GCC 12 warns wrongly on "f" + std::string).
+std::string numbered(int i) {
+  std::string name = "f";
+  name += std::to_string(i);
+  name += ".yaml";
+  return name;
+}
+
+// 3000 files, each including the next: the chain stops at the bound, at
+// the include line of the file that would go past it.
+TEST(HostileIncludes, LongChainIsRefusedAtTheBound) {
+  const fs::path dir = test::fresh_dir("include_chain");
+  for (int i = 1; i < 3000; ++i) write(dir / numbered(i), "include: " + numbered(i + 1) + "\n");
+  const auto errors =
+      load_errors(write(dir / "f0.yaml", std::string(kMinimal) + "include: f1.yaml\n"));
+  expect_one(errors, "include: an include chain of more than 16 files");
+  EXPECT_EQ(errors[0].file, (dir / "f15.yaml").string());
+}
+
+// Each file includes the next one twice: 2^12 reads without a bound on
+// the files of one load.
+TEST(HostileIncludes, FanOutIsBounded) {
+  const fs::path dir = test::fresh_dir("include_fan");
+  for (int i = 1; i < 12; ++i)
+    write(dir / numbered(i), "include: [" + numbered(i + 1) + ", " + numbered(i + 1) + "]\n");
+  write(dir / numbered(12), "seed: 1\n");
+  const auto errors =
+      load_errors(write(dir / "f0.yaml", std::string(kMinimal) + "include: f1.yaml\n"));
+  expect_one(errors, "include: more than 64 included files in one scene");
+}
+
+// Symlinks are followed before the check: a link in the scene's folder to a
+// file outside it is refused; a link inside, and a folder named by
+// include_paths (--include-path), are not.
+TEST(HostileIncludes, SymlinksAreResolvedBeforeTheCheck) {
+  const fs::path dir = test::fresh_dir("include_links");
+  write(dir / "outside" / "secret.yaml", "seed: 7\n");
+  write(dir / "scene" / "parts" / "seed.yaml", "seed: 5\n");
+  fs::create_symlink(dir / "outside" / "secret.yaml", dir / "scene" / "link_out.yaml");
+  fs::create_directories(dir / "scene" / "sub");
+  fs::create_symlink(dir / "outside", dir / "scene" / "sub" / "out");
+  fs::create_symlink(dir / "scene" / "parts" / "seed.yaml", dir / "scene" / "link_in.yaml");
+
+  const std::string base = std::string(kMinimal) + "include: ";
+  expect_one(load_errors(write(dir / "scene" / "a.yaml", base + "link_out.yaml\n")),
+             "include: 'link_out.yaml' is outside the scene's folder");
+  expect_one(load_errors(write(dir / "scene" / "b.yaml", base + "sub/out/secret.yaml\n")),
+             "include: 'sub/out/secret.yaml' is outside the scene's folder");
+  EXPECT_EQ(load(write(dir / "scene" / "c.yaml", base + "link_in.yaml\n").string()).seed, 5u);
+
+  LoadOptions options;
+  options.include_paths = {(dir / "outside").string()};
+  EXPECT_EQ(load((dir / "scene" / "a.yaml").string(), options).seed, 7u);
+  EXPECT_EQ(
+      load(write(dir / "scene" / "d.yaml", base + "../outside/secret.yaml\n").string(), options)
+          .seed,
+      7u);
+}
+
+// Fragments included by a fragment are held to the top scene's folder too,
+// and a refusal reads nothing: it does not say whether the file exists.
+TEST(HostileIncludes, NestedIncludesAndMissingFilesOutsideAreRefusedAlike) {
+  const fs::path dir = test::fresh_dir("include_nested");
+  write(dir / "scene" / "parts" / "a.yaml", "include: ../../elsewhere/b.yaml\n");
+  write(dir / "elsewhere" / "b.yaml", "seed: 3\n");
+  const auto nested = load_errors(
+      write(dir / "scene" / "main.yaml", std::string(kMinimal) + "include: parts/a.yaml\n"));
+  expect_one(nested, "include: '../../elsewhere/b.yaml' is outside the scene's folder");
+  EXPECT_EQ(nested[0].file, (dir / "scene" / "parts" / "a.yaml").string());
+  const auto missing = load_errors(
+      write(dir / "scene" / "m.yaml", std::string(kMinimal) + "include: ../elsewhere/none.yaml\n"));
+  expect_one(missing, "include: '../elsewhere/none.yaml' is outside the scene's folder");
+}
+
+// A file in the scene's tree that is not a scene: the message quotes at
+// most the start of its first line, and every diagnostic is one line.
+TEST(HostileIncludes, MessagesQuoteNoMoreThanTheOffendingLine) {
+  const fs::path dir = test::fresh_dir("include_quote");
+  write(dir / "notes.txt",
+        "root:x:0:0:root:/root:/bin/bash\ndaemon:x:1:1:daemon:/usr/sbin:/usr/sbin/nologin\n"
+        "bin:x:2:2:bin:/bin:/usr/sbin/nologin\n");
+  const auto errors =
+      load_errors(write(dir / "main.yaml", std::string(kMinimal) + "include: notes.txt\n"));
+  ASSERT_EQ(errors.size(), 1u) << all(errors);
+  const std::string shown = errors[0].str();
+  EXPECT_NE(shown.find("got 'root:x:0:0:root:/root:/bin/bash..."), std::string::npos) << shown;
+  EXPECT_EQ(shown.find("daemon"), std::string::npos) << shown;
+  EXPECT_EQ(shown.find('\n'), std::string::npos) << shown;
+
+  const auto escaped = text_errors(
+      std::string(kMinimal) + "name: \"line one\\nline two\"\nseed: \"x\\ny\"\n", "escaped.yaml");
+  for (const Diagnostic& d : escaped) EXPECT_EQ(d.str().find('\n'), std::string::npos) << d.str();
+  EXPECT_NE(all(escaped).find("got 'x...'"), std::string::npos) << all(escaped);
+}
+
+TEST(HostileIncludes, LargeFilesAreRefusedBeforeReading) {
+  const fs::path dir = test::fresh_dir("include_large");
+  write(dir / "big.yaml", std::string(limits::kFileBytes + 1, '#'));
+  expect_one(load_errors(write(dir / "main.yaml", std::string(kMinimal) + "include: big.yaml\n")),
+             "include: cannot read '" + (dir / "big.yaml").string() +
+                 "': 1048577 bytes, "
+                 "expected at most 1048576");
+  expect_one(text_errors(std::string(limits::kFileBytes + 1, '#'), "big.yaml"),
+             "the file has 1048577 bytes, expected at most 1048576");
+}
+
+// ------------------------------------------------------------------ --set
+
+TEST(HostileOverrides, KeyPathsAreBounded) {
+  const fs::path scene = write(test::fresh_dir("set_paths") / "s.yaml", kMinimal);
+  LoadOptions long_path;
+  std::string path = "a";
+  for (int i = 0; i < 60000; ++i) path += ".a";
+  long_path.overrides = {{path, "1"}};
+  expect_one(load_errors(scene, long_path), "a key path longer than 256 characters");
+
+  LoadOptions deep;
+  path = "a";
+  for (int i = 0; i < 40; ++i) path += ".a";
+  deep.overrides = {{path, "1"}};
+  expect_one(load_errors(scene, deep), "a key path of 41 segments, expected at most 32");
+
+  // An index no integer holds is no item, not an exception.
+  LoadOptions index;
+  index.overrides = {{"bodies", "[{name: a, geometry: {box: {size: [1, 1, 1]}}, material: m}]"},
+                     {"bodies.99999999999999999999999.name", "b"}};
+  expect_one(load_errors(scene, index), "'bodies' has no item '99999999999999999999999'");
+}
+
+TEST(HostileOverrides, ValuesAreHeldToTheSameBounds) {
+  const fs::path scene = write(test::fresh_dir("set_values") / "s.yaml", kMinimal);
+  LoadOptions utf8;
+  utf8.overrides = {{"name", "caf\xc3"}};
+  expect_one(load_errors(scene, utf8), "--set:1:");
+  EXPECT_NE(all(load_errors(scene, utf8)).find("invalid UTF-8"), std::string::npos);
+
+  LoadOptions deep;
+  deep.overrides = {{"seed", std::string(40, '[') + "1" + std::string(40, ']')}};
+  expect_one(load_errors(scene, deep), "nested deeper than 32 levels");
+}
+
+// ------------------------------------------------------------------ documents
+
+TEST(HostileDocuments, ValuesAndKeysAreCounted) {
+  std::string list = std::string(kMinimal) + "x: [0";
+  for (std::size_t i = 0; i < limits::kValues; ++i) list += ",0";
+  expect_one(text_errors(list + "]\n", "values.yaml"),
+             "the scene expands to more than 200000 values");
+
+  std::string keys = std::string(kMinimal) + "materials:\n";
+  for (std::size_t i = 0; i <= limits::kKeys; ++i) keys += "  m" + std::to_string(i) + ": {}\n";
+  expect_one(text_errors(keys, "keys.yaml"), "a mapping of 10001 keys, expected at most 10000");
+
+  // One large scalar used through an alias many times: its bytes count each time.
+  std::string text = std::string(kMinimal) + "a: &a '" + std::string(200000, 'x') + "'\nb: [*a";
+  for (int i = 0; i < 100; ++i) text += ", *a";
+  expect_one(text_errors(text + "]\n", "bytes.yaml"), "or 16 MB of text");
+}
+
+TEST(HostileDocuments, DeepNestingIsAnErrorNotACrash) {
+  for (const char* name : {"deep.yaml", "deep.json"}) {
+    const std::string open(100000, '['), close(100000, ']');
+    const auto errors = text_errors("{\"seed\": " + open + close + "}", name);
+    ASSERT_FALSE(errors.empty());
+    EXPECT_GT(errors[0].line, 0) << all(errors);
+  }
+  expect_one(text_errors("{\"ces_sim\": 1, \"seed\": " + std::string(40, '[') + "1" +
+                             std::string(40, ']') + "}",
+                         "deep40.json"),
+             "nested deeper than 32 levels");
+}
+
+// Long plain scalars once overflowed the stack of std::regex; long digit
+// strings are numbers out of range.
+TEST(HostileDocuments, LongScalarsAreScannedWithoutRecursion) {
+  expect_one(text_errors(std::string(kMinimal) + "seed: " + std::string(200000, '1') + "\n",
+                         "digits.yaml"),
+             "seed: 1111111111111111111111111111111111111111... is out of range");
+  const auto words = text_errors(std::string(kMinimal) + "name: " + std::string(200000, 'a') +
+                                     "\nseed: " + std::string(100000, 'b') + "\n",
+                                 "words.yaml");
+  expect_one(words, "seed: got 'bbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbb...', expected an integer");
+}
+
+// nlohmann's parser took a NUL for the end of the text, so what followed
+// reached the YAML parser unchecked: control characters are refused first.
+TEST(HostileDocuments, ControlCharactersAreRefusedWithTheirPlace) {
+  const std::string nul("{\"ces_sim\": 1}\n\0garbage", 23);
+  for (const char* name : {"nul.json", "nul.yaml"}) {
+    const auto errors = text_errors(nul, name);
+    expect_one(errors, std::string(name) + ":2:1: a control character (byte 0x00), expected "
+                                           "printable text");
+  }
+  expect_one(text_errors(std::string(kMinimal) + "name: \"a\x1b[2Jb\"\n", "escape.yaml"),
+             "escape.yaml:3:9: a control character (byte 0x1b)");
+}
+
+TEST(HostileDocuments, JsonNumbersOutOfRangeHaveALine) {
+  expect_one(text_errors("{\"ces_sim\": 1,\n \"time\": {\"step\": 1e999, \"end\": 1}}", "n.json"),
+             "n.json:2:");
+  EXPECT_NE(all(text_errors("{\"ces_sim\": 1,\n \"time\": {\"step\": 1e999}}", "n.json"))
+                .find("number overflow"),
+            std::string::npos);
+  const auto tiny =
+      text_errors("{\"ces_sim\": 1,\n \"time\": {\"step\": 1e-320, \"end\": 1}}", "s.json");
+  expect_one(tiny, "time.step: 1e-320 is out of range");
+  EXPECT_EQ(tiny[0].line, 2);
+}
+
+// ------------------------------------------------------------------ semantics
+
+// Warnings do not stop a load: feeds without gravity say so, and an
+// explicit gravity of zero says it is meant.
+TEST(HostileSemantics, FeedsWithoutGravityWarn) {
+  const std::string feeds =
+      "materials: {copper: {density: 8960 kg/m^3}}\n"
+      "feeds:\n"
+      "  - name: f\n"
+      "    region: {box: {min: [0, 0, 0], max: [0.01, 0.01, 0.01]}}\n"
+      "    rate: 10 /s\n"
+      "    mix: [{material: copper, size: {constant: 1 mm}}]\n";
+  const fs::path dir = test::fresh_dir("gravity_warning");
+  std::vector<Diagnostic> warnings;
+  LoadOptions options;
+  options.warnings = &warnings;
+  load(write(dir / "none.yaml", std::string(kMinimal) + feeds).string(), options);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_TRUE(warnings[0].warning);
+  EXPECT_EQ(warnings[0].line, 4);
+  EXPECT_NE(warnings[0].str().find(":4:1: warning: feeds: particles are fed but the scene gives "
+                                   "no gravity"),
+            std::string::npos)
+      << warnings[0].str();
+  warnings.clear();
+  load(write(dir / "zero.yaml", std::string(kMinimal) + "gravity: [0, 0, 0]\n" + feeds).string(),
+       options);
+  load(
+      write(dir / "down.yaml", std::string(kMinimal) + "gravity: [0, -9.81, 0]\n" + feeds).string(),
+      options);
+  EXPECT_TRUE(warnings.empty()) << all(warnings);
+}
+
+// Angles, angular speeds, voltages and fields need their unit, but zero is
+// zero in any unit.
+TEST(HostileSemantics, BareNumbersOnlyWhereUnambiguous) {
+  const std::string body =
+      "materials: {steel: {}}\n"
+      "bodies:\n"
+      "  - name: plate\n"
+      "    geometry: {box: {size: [1, 1, 1]}}\n"
+      "    material: steel\n"
+      "    pose: {rotation: {axis: [0, 0, 1], angle: ANGLE}}\n";
+  const auto with = [&](const std::string& angle) {
+    std::string text = std::string(kMinimal) + body;
+    text.replace(text.find("ANGLE"), 5, angle);
+    return text;
+  };
+  EXPECT_NO_THROW(load_text(with("0"), "/tmp/zero.yaml"));
+  EXPECT_NO_THROW(load_text(with("30 deg"), "/tmp/deg.yaml"));
+  expect_one(text_errors(with("30"), "bare.yaml"),
+             "bodies[0].pose.rotation.angle: a number without a unit is ambiguous here, "
+             "expected an angle (rad)");
+}
+
+// A region partly inside a body can still place particles: only a region
+// wholly inside one is refused.
+TEST(HostileSemantics, FeedRegionPartlyInsideABodyIsAccepted) {
+  const std::string scene = std::string(kMinimal) +
+                            "gravity: [0, -9.81, 0]\n"
+                            "materials: {steel: {}, copper: {density: 8960 kg/m^3}}\n"
+                            "bodies:\n"
+                            "  - {name: block, geometry: {box: {size: [0.1, 0.1, 0.1]}}, "
+                            "material: steel}\n"
+                            "feeds:\n"
+                            "  - name: f\n"
+                            "    region: {box: {min: [0, 0, 0], max: [0.1, 0.1, 0.1]}}\n"
+                            "    rate: 10 /s\n"
+                            "    mix: [{material: copper, size: {constant: 1 mm}}]\n";
+  EXPECT_NO_THROW(load_text(scene, "/tmp/partly.yaml"));
+  std::string inside = scene;
+  inside.replace(inside.find("max: [0.1, 0.1, 0.1]"), 20, "max: [0.04, 0.04, 0.04]");
+  expect_one(text_errors(inside, "inside.yaml"), "the region lies inside body 'block'");
+}
+
+}  // namespace
+}  // namespace ces::scene
