@@ -56,8 +56,10 @@ class Feeder {
  private:
   struct Candidate {
     int component = 0;
+    int shape = 0;  // Model::shapes index
     double scale = 1.0;
     double mass = 0.0;
+    Vec3 inertia = Vec3::Zero();  // principal
   };
 
   Candidate draw_candidate();
@@ -68,6 +70,7 @@ class Feeder {
                           const Quat& q) const;
   void find_neighbours(const State& state);
   double uniform();
+  Quat orientation(const Candidate& c);
   Quat random_orientation();
 
   Feed feed_;

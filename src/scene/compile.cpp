@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "feed/shapes.hpp"
+#include "fields/electrostatics.hpp"
 #include "scene/diagnostics.hpp"
 #include "scene/electrostatics.hpp"
 #include "scene/schema.hpp"
@@ -509,6 +510,12 @@ class Compiler {
       feed.velocity = vec3(f.at("velocity"));
       feed.velocity_spread = f.at("velocity_spread").number();
       feed.random_orientation = f.at("random_orientation").boolean();
+      if (f.at("lie_flat").boolean()) {
+        if (model_->gravity == Vec3::Zero())
+          diags_.error(f.at("lie_flat"), "lying flat needs a down, expected gravity");
+        else
+          feed.lie_flat = -model_->gravity.normalized();
+      }
       feed.max_attempts = f.at("max_attempts").scalar.get<int>();
       const std::vector<double> across = read_mix(f.at("mix"), feed);
       const Node& region = f.at("region");
@@ -566,6 +573,20 @@ class Compiler {
       component.mass_fraction = c.at("fraction").number();
       total += component.mass_fraction;
       const auto material = dense_material(c.at("material"), "feed '" + feed.name + "'");
+      if (c.find("thickness")) {
+        auto drawn = drawn_shape(c);
+        if (!material || !drawn) continue;
+        component.material = *material;
+        across.push_back(drawn_across(*drawn));
+        component.drawn = std::move(*drawn);
+        feed.mix.push_back(component);
+        continue;
+      }
+      if (!c.find("size")) {
+        diags_.error(c, "missing key 'size', expected a size law, or thickness with width "
+                        "(flake) or length (rod)");
+        continue;
+      }
       const auto shape = particle_shape(c);
       const feed::Basis basis =
           c.at("by").string() == "mass" ? feed::Basis::mass : feed::Basis::number;
@@ -605,6 +626,89 @@ class Compiler {
                                " across, expected a region that holds them");
       return;
     }
+  }
+
+  // ---------------------------------------------------------------- drawn shapes
+
+  // The thinnest contact geometry of a drawn flake (37 spheres) or rod (19
+  // spheres), and the ratio of neighbouring aspects on the ladder.
+  static constexpr double kFlakeMinAspect = 0.15;
+  static constexpr double kRodMinAspect = 0.1;
+  static constexpr double kLadderRatio = 1.1;
+
+  // A flake or rod whose dimensions are drawn: its laws and the ladder of
+  // contact shapes the drawn aspects reach; nullopt: reported.
+  std::optional<DrawnShape> drawn_shape(const Node& c) {
+    const Node* shape = c.find("shape");
+    const std::string name = shape ? shape->string() : "sphere";
+    if (name != "flake" && name != "rod") {
+      diags_.error(shape ? *shape : c.at("thickness"),
+                   "a drawn thickness needs shape: flake or rod, expected one of them");
+      return std::nullopt;
+    }
+    const bool flake = name == "flake";
+    const char* extent_key = flake ? "width" : "length";
+    for (const char* key : {"size", "aspect", flake ? "length" : "width"})
+      if (const Node* extra = c.find(key)) {
+        diags_.error(*extra, std::string("the ") + name + "'s dimensions are drawn from thickness and " +
+                                 extent_key + ", expected no " + key);
+        return std::nullopt;
+      }
+    const Node* extent = c.find(extent_key);
+    if (!extent) {
+      diags_.error(c, std::string("missing key '") + extent_key + "', expected the " + name +
+                          "'s " + extent_key + " law with its thickness");
+      return std::nullopt;
+    }
+    const auto t = size_distribution(c.at("thickness"), feed::Basis::number);
+    const auto e = size_distribution(*extent, feed::Basis::number);
+    if (!t || !e) return std::nullopt;
+    DrawnShape d;
+    d.kind = flake ? DrawnShape::Kind::Flake : DrawnShape::Kind::Rod;
+    d.thickness = *t;
+    d.extent = *e;
+    d.ladder = ladder(name, t->quantile_by_number(0.0) / e->quantile_by_number(1.0),
+                      t->quantile_by_number(1.0) / e->quantile_by_number(0.0));
+    return d;
+  }
+
+  // The rungs of aspect a0 1.1^k (and 1) the drawn aspects [lo, hi] reach.
+  std::vector<DrawnShape::Rung> ladder(const std::string& name, double lo, double hi) {
+    const double a0 = name == "flake" ? kFlakeMinAspect : kRodMinAspect;
+    std::vector<double> aspects;
+    for (double a = a0; a < 1.0; a *= kLadderRatio) aspects.push_back(a);
+    aspects.push_back(1.0);
+    std::vector<DrawnShape::Rung> out;
+    for (std::size_t k = 0; k < aspects.size(); ++k) {
+      const bool below = k + 1 < aspects.size() && aspects[k + 1] <= lo;
+      const bool above = k > 0 && aspects[k - 1] >= hi;
+      if (!below && !above) out.push_back(rung(name, aspects[k]));
+    }
+    return out;
+  }
+
+  DrawnShape::Rung rung(const std::string& name, double aspect) {
+    const std::string key = name + "~" + format(aspect);
+    const auto it = shape_index_.find(key);
+    const int index = it != shape_index_.end()
+                          ? *it->second
+                          : add_shape(builtin_spheres(name, aspect), nullptr, name);
+    shape_index_[key] = index;
+    const ParticleShape& shape = model_->shapes[std::size_t(index)];
+    const double extent =
+        name == "flake" ? std::sqrt(4.0 * fields::footprint_area(shape) / kPi) : 1.0;
+    shape_sizes_[std::size_t(index)] = extent;
+    return {index, aspect, extent};
+  }
+
+  // The bounding diameter of the largest particle a drawn shape can make.
+  double drawn_across(const DrawnShape& d) const {
+    const double largest = d.extent.quantile_by_number(1.0);
+    double across = 0.0;
+    for (const DrawnShape::Rung& r : d.ladder)
+      across = std::max(across, 2.0 * largest / r.extent *
+                                    model_->shapes[std::size_t(r.shape)].bounding_radius);
+    return across;
   }
 
   // ---------------------------------------------------------------- particle shapes

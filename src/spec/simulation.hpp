@@ -67,7 +67,8 @@ struct Simulation {
 };
 
 // The diameter of each Model shape at scale 1 (m): taken from the feeds'
-// components (shape_size), else twice the shape's bounding radius.
+// components (shape_size; a drawn shape's rungs, their width or length),
+// else twice the shape's bounding radius.
 std::vector<double> shape_sizes(const Simulation& sim);
 
 }  // namespace ces
