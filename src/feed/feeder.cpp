@@ -70,9 +70,12 @@ double Feeder::fed_amount() const {
   return feed_.mass_rate > 0.0 ? t.kg() : double(t.count);
 }
 
+bool Feeder::finished(double t) const { return t >= feed_.start + feed_.duration && !owing_; }
+
 void Feeder::feed(State& state) {
   const double goal = target(state.time + model_->step);
   neighbours_valid_ = false;
+  owing_ = false;
   while (fed_amount() < goal) {
     if (!pending_) pending_ = draw_candidate();
     const double amount = feed_.mass_rate > 0.0 ? pending_->mass : 1.0;
@@ -80,6 +83,7 @@ void Feeder::feed(State& state) {
     if (fed_amount() + 0.5 * amount > goal) return;
     if (!place(state, *pending_)) {
       ++stats_.deferrals;
+      owing_ = true;
       return;
     }
     pending_.reset();

@@ -52,6 +52,8 @@ class Feeder {
   double target(double t) const;
   // The fed amount in the same unit as target().
   double fed_amount() const;
+  // The feed's time is over at t and the last step placed everything it owed.
+  bool finished(double t) const;
 
  private:
   struct Candidate {
@@ -81,6 +83,7 @@ class Feeder {
   double max_bounding_radius_ = 0.0;     // of any particle this feed can draw
   std::vector<std::size_t> neighbours_;  // particles that may touch the region
   bool neighbours_valid_ = false;        // found this step
+  bool owing_ = false;                   // the last step deferred a particle
   std::vector<geo::SurfaceHit> hits_;    // scratch for body queries
 };
 

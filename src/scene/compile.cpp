@@ -139,6 +139,10 @@ class Compiler {
     const Node& time = root_.at("time");
     model_->step = time.at("step").number();
     sim_.end_time = time.at("end").number();
+    sim_.until_collected = time.at("until").string() == "collected";
+    const Node& end = time.at("end");
+    sim_.end_origin = Diagnostic{end.mark.file, end.mark.line, end.mark.column, end.path, ""}.str();
+    sim_.end_origin.resize(sim_.end_origin.size() - 2);  // the ": " before a message
     if (model_->step > sim_.end_time)
       diags_.error(time.at("step"), "step " + format(model_->step) +
                                         " s is longer than the run (end " + format(sim_.end_time) +
@@ -504,7 +508,11 @@ class Compiler {
       Feed feed;
       feed.name = f.at("name").string();
       feed.start = f.at("start").number();
-      if (const Node* duration = f.find("duration")) feed.duration = duration->number();
+      if (const Node* duration = f.find("duration"))
+        feed.duration = duration->number();
+      else if (sim_.until_collected)
+        diags_.error(f, "feed '" + feed.name + "' has no duration, so it never stops and the run "
+                        "could not end with time.until: collected; expected a duration");
       const Node& rate = f.at("rate");
       (rate.dimension == "mass_rate" ? feed.mass_rate : feed.count_rate) = rate.number();
       feed.velocity = vec3(f.at("velocity"));

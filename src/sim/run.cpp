@@ -1,6 +1,7 @@
-// The run: the World of the compiled scene stepped to the end time (or
-// until a signal or an error), observed by the outputs as it goes, then
-// every output written from what was accumulated.
+// The run: the World of the compiled scene stepped to the end time (or,
+// with time.until: collected, until its feed is accounted for; or until a
+// signal or an error), observed by the outputs as it goes, then every
+// output written from what was accumulated.
 #include "sim/run.hpp"
 
 #include <omp.h>
@@ -22,6 +23,7 @@
 #include "output/summary.hpp"
 #include "output/tables.hpp"
 #include "output/trajectories.hpp"
+#include "sim/stop.hpp"
 #include "sim/world.hpp"
 
 namespace ces {
@@ -219,6 +221,11 @@ void Runner::step_to_end() {
       }
       output_seconds_ += world_.step(&observers_).seconds[Stage::Output];
       progress.update(world_, sim_.end_time, seconds_since(start_));
+      if (sim_.until_collected && feed_accounted_for(world_)) break;
+    }
+    if (sim_.until_collected && !feed_accounted_for(world_)) {
+      reason_ = cap_message(sim_, world_);
+      return;
     }
     complete_ = true;
   } catch (const std::exception& e) {

@@ -54,6 +54,10 @@ struct Simulation {
   std::string resolved_yaml;       // written to the output folder
   std::uint64_t seed = 0;
   double end_time = 1.0;
+  // time.until: collected: the run ends once every feed has stopped and no
+  // particle is left, and end_time is a cap that fails the run.
+  bool until_collected = false;
+  std::string end_origin;          // "file:line:col: time.end", for the cap's message
   std::shared_ptr<Model> model;
   std::vector<Feed> feeds;
   std::vector<Collector> collectors;
