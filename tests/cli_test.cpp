@@ -316,7 +316,7 @@ TEST(Cli, ReportNamesFatesProductsAndTheOutputFolder) {
   EXPECT_TRUE(o.err.empty()) << "stderr is not a terminal: no progress line, got " << o.err;
 }
 
-TEST(Cli, SigtermStopsTheRunKeepsOutputsAndExitsThree) {
+TEST(Cli, SigtermStopsTheRunKeepsItsOutputsAsideAndExitsThree) {
   const fs::path dir = fresh_dir("sigterm");
   const std::string out = dir.string();
   const pid_t pid = ::fork();
@@ -328,7 +328,8 @@ TEST(Cli, SigtermStopsTheRunKeepsOutputsAndExitsThree) {
     ::_exit(127);
   }
   // The first summary.json (complete: false) appears once the handlers are in.
-  for (int i = 0; i < 2000 && !fs::exists(dir / "summary.json"); ++i)
+  const fs::path partial = dir / "partial";
+  for (int i = 0; i < 2000 && !fs::exists(partial / "summary.json"); ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   ::kill(pid, SIGTERM);
@@ -336,13 +337,14 @@ TEST(Cli, SigtermStopsTheRunKeepsOutputsAndExitsThree) {
   ::waitpid(pid, &status, 0);
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 3);
-  const nlohmann::json s = nlohmann::json::parse(read_text(dir / "summary.json"));
+  const nlohmann::json s = nlohmann::json::parse(read_text(partial / "summary.json"));
   EXPECT_FALSE(s["complete"].get<bool>());
   EXPECT_EQ(s["reason"], "interrupted by SIGTERM");
   EXPECT_TRUE(s["balance"]["exact"].get<bool>());
   for (const char* name :
        {"bins.csv", "products.csv", "crossings.csv", "steps.csv", "trajectories.pvd"})
-    EXPECT_TRUE(fs::exists(dir / name)) << name;
+    EXPECT_TRUE(fs::exists(partial / name)) << name;
+  EXPECT_FALSE(fs::exists(dir / "summary.json")) << "an unfinished run publishes nothing";
 }
 
 }  // namespace

@@ -212,9 +212,10 @@ TEST(Engine, RaftInMeshCornerKeepsContactsOnBothFaces) {
 // (a grain dropped on the turning drum) should stay on the plane: with
 // restitution 0 nothing throws it up, and it slides under Coulomb friction
 // until it rolls. The cone complementarity relaxation (Anitescu-Tasora)
-// gives a sliding contact the normal velocity mu |v_t|: without
-// CcpProblem::release_sliding_walls the sphere hopped at 0.19 m/s and rose
-// 1.86 mm (1.9 radii) at the CES scenes' 0.5 ms step (the same at 1 ms).
+// gives a sliding contact the normal velocity mu |v_t|: without the
+// sliding release (dynamics/safeguards.cpp) the sphere hops at 0.19 m/s
+// and rises 1.86 mm (1.9 radii) at the CES scenes' 0.5 ms step (the same
+// at 1 ms).
 // Tolerances: 1 % of r off the plane; rolling within two steps of the
 // closed form.
 TEST(Engine, SphereLandingWithSlipStaysOnPlane) {
@@ -297,7 +298,7 @@ TEST(Engine, TumblingClumpStaysOutOfThePlane) {
 // scene's did; spheres ride the drum up into the wedge below it. Every
 // grain must stay out of both cylinders (docs/accuracy.md, section 4):
 // bound half a radius. Before the wall guard's sweeps were finished body
-// by body (CcpProblem::guard_walls) and the guards after the spin cap
+// by body (dynamics/safeguards.cpp) and the guards after the spin cap
 // left clumps' spin alone, a sphere went 4.5 radii into a cylinder here;
 // now 0.23.
 TEST(Engine, GrainsStayOutOfAZeroGapNipAtALargeStep) {
@@ -651,7 +652,7 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   p.assemble(c, B, {row}, 1e-3, ContactSettings{});
   const std::size_t m = p.row_count();
   ASSERT_EQ(m, 40u);
-  // World rows, each with a spare past its end (SolverWorkspace::take).
+  // World rows, each with a spare past its end (RowBuffer::take).
   auto rows = [&] { return std::vector<double>(m + 1); };
   std::vector<double> x = rows(), x_old = rows(), x1 = rows(), gx = rows(), g_old = rows(),
                       g1 = rows(), y = rows(), gy = rows();

@@ -379,8 +379,8 @@ TEST(RunOutputs, SameSeedGivesIdenticalTables) {
   EXPECT_TRUE(output::compare_outputs(a, b, {}).agree());
 }
 
-TEST(RunOutputs, ErrorMidRunKeepsOutputsAndSaysIncomplete) {
-  const fs::path dir = fresh_dir("error");
+TEST(RunOutputs, ErrorMidRunKeepsOutputsAsideAndSaysIncomplete) {
+  const fs::path dir = fresh_dir("error"), partial = dir / "partial";
   Simulation sim = small_run(dir);
   // A second feed that starts at 50 ms and makes impossible particles: its
   // hook throws mid-run.
@@ -393,24 +393,26 @@ TEST(RunOutputs, ErrorMidRunKeepsOutputsAndSaysIncomplete) {
   const RunResult r = run(sim, {.out_dir = "", .progress = false, .quiet = true});
   EXPECT_FALSE(r.complete);
   EXPECT_NE(r.reason.find("broken"), std::string::npos) << r.reason;
-  const nlohmann::json s = read_json(dir / "summary.json");
+  EXPECT_EQ(r.out_dir, partial.string());
+  const nlohmann::json s = read_json(partial / "summary.json");
   EXPECT_FALSE(s["complete"].get<bool>());
   EXPECT_EQ(s["reason"].get<std::string>(), r.reason);
   // Its first particle is drawn by the step from 49 to 50 ms, which fails.
   EXPECT_EQ(s["steps"].get<int>(), 49);
   EXPECT_TRUE(s["balance"]["exact"].get<bool>());
   for (const char* name : {"bins.csv", "products.csv", "crossings.csv", "steps.csv"})
-    EXPECT_TRUE(fs::exists(dir / name)) << name;
+    EXPECT_TRUE(fs::exists(partial / name)) << name;
+  EXPECT_FALSE(fs::exists(dir / "summary.json"));
 }
 
 TEST(RunOutputs, SignalStopsTheRunBetweenStepsAndSaysIncomplete) {
-  const fs::path dir = fresh_dir("signal");
+  const fs::path dir = fresh_dir("signal"), partial = dir / "partial";
   Simulation sim = small_run(dir);
   sim.end_time = 1e4;  // would run for a very long time
   std::thread interrupter([&] {
-    // The first summary (complete: false, "running") appears once the
+    // The first summary (complete: false, no end recorded) appears once the
     // handlers are installed.
-    while (!fs::exists(dir / "summary.json"))
+    while (!fs::exists(partial / "summary.json"))
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     std::raise(SIGTERM);
@@ -419,11 +421,11 @@ TEST(RunOutputs, SignalStopsTheRunBetweenStepsAndSaysIncomplete) {
   interrupter.join();
   EXPECT_FALSE(r.complete);
   EXPECT_EQ(r.reason, "interrupted by SIGTERM");
-  const nlohmann::json s = read_json(dir / "summary.json");
+  const nlohmann::json s = read_json(partial / "summary.json");
   EXPECT_FALSE(s["complete"].get<bool>());
   EXPECT_EQ(s["reason"].get<std::string>(), "interrupted by SIGTERM");
   EXPECT_GT(s["steps"].get<int>(), 0);
-  EXPECT_TRUE(fs::exists(dir / "bins.csv"));
+  EXPECT_TRUE(fs::exists(partial / "bins.csv"));
 }
 
 TEST(RunCompare, WassersteinOfShiftedSamplesIsTheShift) {

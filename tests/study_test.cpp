@@ -2,7 +2,9 @@
 // collector, so the landing position is known in closed form.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 
 #include "output/compare.hpp"
@@ -130,6 +132,73 @@ TEST(Study, ListAndSelectCases) {
   EXPECT_TRUE(test::fs::exists(dir / "study.csv"));
   EXPECT_EQ(test::fs::last_write_time(dir / "case_1" / "summary.json"), stamp);
   EXPECT_EQ(test::ces_sim(base + " --case 3").code, 2);  // out of range
+}
+
+
+// study.csv without its wall_time_s column: everything a study measures
+// but the time it took, which no two runs share.
+std::string without_wall_time(const path& file) {
+  auto rows = read_csv(file);
+  const auto at = std::find(rows[0].begin(), rows[0].end(), "wall_time_s") - rows[0].begin();
+  std::string text;
+  for (auto& row : rows) {
+    row.erase(row.begin() + at);
+    for (const std::string& cell : row) text += cell + ",";
+    text += "\n";
+  }
+  return text;
+}
+
+// The serial study and another study of the same grid agree: study.csv
+// byte for byte but the wall times, each case's bins and products byte for
+// byte.
+void expect_same_study(const path& serial, const path& other, std::size_t cases) {
+  EXPECT_EQ(without_wall_time(serial / "study.csv"), without_wall_time(other / "study.csv"));
+  for (std::size_t k = 0; k < cases; ++k) {
+    const path a = serial / ("case_" + std::to_string(k)), b = other / ("case_" + std::to_string(k));
+    EXPECT_EQ(test::read_text(a / "bins.csv"), test::read_text(b / "bins.csv")) << k;
+    EXPECT_EQ(test::read_text(a / "products.csv"), test::read_text(b / "products.csv")) << k;
+  }
+}
+
+path serial_study(const std::string& name) {
+  const path dir = test::fresh_dir(name);
+  const test::Outcome r = test::ces_sim("study " + kScene + kSteps + " --jobs 1 -o " + dir.string());
+  EXPECT_EQ(r.code, 0) << r.err;
+  return dir;
+}
+
+// GNU parallel on 2 processes runs the same cases as the serial study.
+TEST(Study, GnuParallelGivesTheSerialStudy) {
+  const path serial = serial_study("study_serial_p");
+  const path dir = test::fresh_dir("study_parallel");
+  const test::Outcome r = test::ces_sim("study " + kScene + kSteps +
+                                        " --scheduler parallel --jobs 2 -o " + dir.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string commands = test::read_text(dir / "cases.sh");
+  EXPECT_EQ(std::count(commands.begin(), commands.end(), '\n'), 3);
+  expect_same_study(serial, dir, 3);
+}
+
+// The Slurm script, run here as the array would run it (one task per
+// SLURM_ARRAY_TASK_ID), then the measuring command: the serial study.
+TEST(Study, SlurmArrayGivesTheSerialStudy) {
+  const path serial = serial_study("study_serial_s");
+  const path dir = test::fresh_dir("study_slurm");
+  const std::string base = "study " + kScene + kSteps + " -o " + dir.string();
+  const test::Outcome r = test::ces_sim(base + " --scheduler slurm");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("sbatch --parsable"), std::string::npos) << r.out;
+  const std::string script = test::read_text(dir / "study.sbatch");
+  EXPECT_NE(script.find("#SBATCH --array=0-2\n"), std::string::npos) << script;
+  EXPECT_FALSE(test::fs::exists(dir / "case_0"));
+  for (int task = 0; task < 3; ++task) {
+    const std::string command = "SLURM_ARRAY_TASK_ID=" + std::to_string(task) + " bash " +
+                                (dir / "study.sbatch").string() + " > /dev/null 2>&1";
+    ASSERT_EQ(std::system(command.c_str()), 0) << command;
+  }
+  ASSERT_EQ(test::ces_sim(base).code, 0);
+  expect_same_study(serial, dir, 3);
 }
 
 }  // namespace

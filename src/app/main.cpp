@@ -3,6 +3,7 @@
 //   ces-sim SCENE [-o DIR] [--set key.path=value]... [--seed N] [--threads N] [--quiet]
 //   ces-sim validate SCENE [--set ...]
 //   ces-sim schema [--markdown]
+//   ces-sim resume DIR [--threads N] [--quiet]
 //   ces-sim compare DIR_A DIR_B [--tol-count N] [--tol-mass F] [--tol-w1 MM]
 //   ces-sim study SCENE --vary key=v1,v2... [--reference DIR] [-o DIR] [--jobs N]
 //                 [--case K] [--list-cases]
@@ -20,6 +21,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <optional>
 #include <string>
@@ -81,17 +83,38 @@ ces::scene::LoadOptions load_options(const Args& args) {
   return o;
 }
 
-int run_scene(const Args& args) {
-  const ces::Simulation sim = ces::scene::load(args.scene, load_options(args));
+ces::RunOptions run_options(const Args& args) {
   ces::RunOptions options;
   options.out_dir = args.out_dir;
   options.quiet = args.quiet;
   options.progress = !args.quiet && ::isatty(::fileno(stderr));
-  const ces::RunResult result = ces::run(sim, options);
+  return options;
+}
+
+// Exit code and message of a run that ended.
+int ended(const ces::RunResult& result) {
   if (result.complete) return kSuccess;
-  std::fprintf(stderr, "ces-sim: run incomplete: %s\nces-sim: partial outputs in %s\n",
+  std::fprintf(stderr, "ces-sim: run incomplete: %s\nces-sim: its outputs so far are in %s\n",
                result.reason.c_str(), result.out_dir.c_str());
+  if (std::filesystem::exists(std::filesystem::path(result.out_dir) / "checkpoint.bin"))
+    std::fprintf(stderr, "ces-sim: to continue it from its last checkpoint: ces-sim resume %s\n",
+                 std::filesystem::path(result.out_dir).parent_path().c_str());
   return kRunFailed;
+}
+
+int run_scene(const Args& args) {
+  const ces::Simulation sim = ces::scene::load(args.scene, load_options(args));
+  return ended(ces::run(sim, run_options(args)));
+}
+
+// The run's own scene, rebuilt from the checkpoint; --threads may differ
+// (the bits do not depend on it).
+int resume(const Args& args) {
+  const ces::Checkpoint c = ces::find_checkpoint(args.dir_a);
+  ces::scene::LoadOptions o;
+  o.threads = args.threads;
+  const ces::Simulation sim = ces::scene::load_text(c.resolved_yaml, c.scene_path, o);
+  return ended(ces::resume(sim, c, args.dir_a, run_options(args)));
 }
 
 int validate(const Args& args) {
@@ -120,19 +143,18 @@ int compare(const Args& args) {
 
 struct StudyArgs {
   ces::study::Options options;
+  std::string scheduler = "local";
   std::vector<std::string> vary;
   std::optional<std::size_t> only_case;
   bool list = false;
 };
 
 constexpr const char* kStudyHelp =
-    "Cases run in parallel as separate processes, in DIR/case_K. To spread them over\n"
-    "machines, run single cases, then the same study command without --case: cases\n"
-    "already complete are not rerun, it only measures and writes study.csv/.svg:\n"
-    "  ces-sim study s.yaml --vary time.step=2ms,1ms --list-cases -o st | cut -d' ' -f1 |\n"
-    "    parallel ces-sim study s.yaml --vary time.step=2ms,1ms -o st --case {}\n"
-    "  # Slurm: sbatch --array=0-1 --wrap 'ces-sim study s.yaml --vary time.step=2ms,1ms\n"
-    "  #   -o st --case $SLURM_ARRAY_TASK_ID'\n"
+    "Cases run as separate processes, in DIR/case_K. A case already complete is not\n"
+    "run again, so the same command without --case or --scheduler only measures.\n"
+    "  ces-sim study s.yaml --vary time.step=2ms,1ms -o st --scheduler parallel --jobs 8\n"
+    "  ces-sim study s.yaml --vary time.step=2ms,1ms -o st --scheduler slurm\n"
+    "    # then: sbatch st/study.sbatch, and when the array is done:\n"
     "  ces-sim study s.yaml --vary time.step=2ms,1ms -o st\n";
 
 CLI::App* add_study_command(CLI::App& app, Args& args, StudyArgs& study) {
@@ -153,6 +175,11 @@ CLI::App* add_study_command(CLI::App& app, Args& args, StudyArgs& study) {
   cmd->add_option("--jobs", study.options.jobs, "Cases at once (default: the number of cores)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--case", study.only_case, "Run only case K (see --list-cases)");
+  cmd->add_option("--scheduler", study.scheduler,
+                  "Who runs the cases: local (this process, --jobs at a time), parallel (GNU "
+                  "parallel, --jobs at a time, then measured here) or slurm (writes a job-array "
+                  "script, DIR/study.sbatch, and prints how to submit it)")
+      ->check(CLI::IsMember({"local", "parallel", "slurm"}));
   cmd->add_flag("--list-cases", study.list, "Print one line per case: K and its --set list");
   cmd->footer(kStudyHelp);
   return cmd;
@@ -166,6 +193,7 @@ int study(const Args& args, StudyArgs& study) {
     o.seed = args.seed;
     o.threads = args.threads;
     o.only_case = study.only_case;
+    o.scheduler = ces::study::parse_scheduler(study.scheduler);
     for (const std::string& v : study.vary) o.axes.push_back(ces::study::parse_axis(v));
     if (study.list) {
       std::fputs(ces::study::list_cases(o).c_str(), stdout);
@@ -187,9 +215,10 @@ int study(const Args& args, StudyArgs& study) {
 
 // Runs the chosen command; maps failures to the documented exit codes.
 int dispatch(const CLI::App& app, const CLI::App* validate_cmd, const CLI::App* schema_cmd,
-             const CLI::App* compare_cmd, const Args& args) {
+             const CLI::App* compare_cmd, const CLI::App* resume_cmd, const Args& args) {
   try {
     if (validate_cmd->parsed()) return validate(args);
+    if (resume_cmd->parsed()) return resume(args);
     if (schema_cmd->parsed()) {
       const std::string text =
           args.markdown ? ces::scene::schema_markdown() : ces::scene::schema_text();
@@ -211,7 +240,10 @@ int dispatch(const CLI::App& app, const CLI::App* validate_cmd, const CLI::App* 
     return kBadInput;
   } catch (const ces::output::IoError& e) {
     std::fprintf(stderr, "ces-sim: %s\n", e.what());
-    return compare_cmd->parsed() ? kBadInput : kRunFailed;
+    return compare_cmd->parsed() || resume_cmd->parsed() ? kBadInput : kRunFailed;
+  } catch (const ces::CorruptData& e) {
+    std::fprintf(stderr, "ces-sim: cannot resume: %s\n", e.what());
+    return kBadInput;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "ces-sim: internal error: %s\n", e.what());
     return kInternalError;
@@ -254,6 +286,13 @@ int main(int argc, char** argv) {
       ->add_option("--tol-w1", args.tolerances.tol_w1_mm,
                    "Wasserstein-1 distance (mm) between landing distributions (default 0)")
       ->check(CLI::NonNegativeNumber);
+  CLI::App* resume_cmd = app.add_subcommand(
+      "resume", "Continue an unfinished run from its checkpoint (scenes with output.checkpoint)");
+  resume_cmd->add_option("dir", args.dir_a, "The run's output folder (it holds partial/)")
+      ->required();
+  resume_cmd->add_option("--threads", args.threads, "Worker threads")->check(CLI::PositiveNumber);
+  resume_cmd->add_flag("-q,--quiet", args.quiet, "No progress line and no end-of-run report");
+
   StudyArgs study_args;
   CLI::App* study_cmd = add_study_command(app, args, study_args);
   app.require_subcommand(0, 1);
@@ -264,5 +303,5 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? kSuccess : kBadInput;
   }
   if (study_cmd->parsed()) return study(args, study_args);
-  return dispatch(app, validate_cmd, schema_cmd, compare_cmd, args);
+  return dispatch(app, validate_cmd, schema_cmd, compare_cmd, resume_cmd, args);
 }

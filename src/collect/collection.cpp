@@ -153,4 +153,24 @@ void Collection::lose(const Particles& p, std::size_t i, double t_end, LossReaso
   losses_.push_back(l);
 }
 
+void Collection::save(ByteWriter& out) const {
+  for (const CollectorTallies& t : tallies_)
+    for (const auto* v : {&t.bins, &t.products, &t.outside, &t.total}) out.values(*v);
+  for (const std::vector<Tally>& l : lost_) out.values(l);
+  out.values(crossings_);
+  out.values(losses_);
+}
+
+void Collection::load(ByteReader& in) {
+  for (CollectorTallies& t : tallies_)
+    for (auto* v : {&t.bins, &t.products, &t.outside, &t.total}) {
+      const std::size_t expected = v->size();
+      in.values(*v);
+      if (v->size() != expected) throw CorruptData("a collector's bins or products have changed");
+    }
+  for (std::vector<Tally>& l : lost_) in.values(l);
+  in.values(crossings_);
+  in.values(losses_);
+}
+
 }  // namespace ces::collect

@@ -12,6 +12,7 @@
 #include <optional>
 
 #include "collect/collector.hpp"
+#include "common/serial.hpp"
 #include "common/tally.hpp"
 #include "geometry/shapes.hpp"
 #include "model/state.hpp"
@@ -76,6 +77,10 @@ class Collection {
   const std::vector<Crossing>& crossings() const { return crossings_; }
   const std::vector<Loss>& losses() const { return losses_; }
 
+  // The tallies and records, for checkpoints.
+  void save(ByteWriter& out) const;
+  void load(ByteReader& in);
+
  private:
   bool leaves(const Particles& p, std::size_t i, double t_end, double h);
   bool try_collect(const Particles& p, std::size_t i, double t_end, double h);
@@ -94,3 +99,8 @@ class Collection {
 };
 
 }  // namespace ces::collect
+
+namespace ces {
+template <> struct PlainBytes<collect::Crossing> : std::true_type {};
+template <> struct PlainBytes<collect::Loss> : std::true_type {};
+}  // namespace ces

@@ -62,7 +62,7 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
   // Each particle's run in index order: the pairs come out sorted by (i, j)
   // whatever the chunks and threads. Where a block of particles' runs start
   // is a prefix sum over the blocks' pair counts, so that neither pass is
-  // serial (a prefix over the particles took 0.4 ms of a 34,000-sphere bed).
+  // serial.
   const std::size_t blocks = (n + kBlock - 1) / kBlock;
   block_first_.assign(blocks + 1, 0);
 #pragma omp parallel for schedule(static) if (blocks > 1)
@@ -87,8 +87,7 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
 
 // By (cell, index), which no two entries share, so the order is the same
 // whatever sorts them: each thread sorts a piece, and pieces are merged in
-// pairs (the sort of a 34,000-sphere bed's entries took 1.1 ms on one
-// thread while the other waited).
+// pairs, where one thread sorting them all would keep the others waiting.
 void GridBroadphase::sort_entries() {
   const auto less = [](const Entry& a, const Entry& b) {
     return a.cell != b.cell ? a.cell < b.cell : a.index < b.index;
@@ -122,7 +121,7 @@ void GridBroadphase::sort_entries() {
 // z + 1 of a column are one run of the sorted entries. A column's first
 // cell, shifted by a fixed (dx, dy), grows with the entry's key, so nine
 // cursors only move forward: no search per entry (nine binary searches of
-// all entries each, before, took most of the broadphase).
+// all entries each would cost most of the broadphase).
 void GridBroadphase::sweep(std::size_t ch, std::size_t end, const std::vector<Vec3>& centers,
                            const std::vector<double>& radii) {
   constexpr std::size_t kUnset = ~std::size_t{0};

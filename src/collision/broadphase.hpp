@@ -1,7 +1,7 @@
 // Particle-particle broadphase: a uniform grid stored as a sorted cell list.
-// Chosen over Bullet's btDbvtBroadphase by measurement (bench/): particles of
-// similar size make every cell hold O(1) particles, and a sort is cache
-// friendly and deterministic.
+// Chosen over Bullet's btDbvtBroadphase by measurement (bench/README.md):
+// particles of similar size make every cell hold O(1) particles, and a sort
+// is cache friendly and deterministic.
 #pragma once
 #include <cstdint>
 #include <utility>

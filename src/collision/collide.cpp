@@ -115,7 +115,7 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b, do
     group[i] = int(g);
   }
   // The contacts by group, each group's in contact order (a counting sort),
-  // where scanning every contact for each group cost as much as the
+  // where scanning every contact for each group costs as much as the
   // grouping. One group (most pairs) is the contacts as they are.
   const std::size_t groups = leader.size();
   by_group.resize(n);
@@ -157,14 +157,11 @@ void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts
   if (chunks.size() < count) chunks.resize(count);
   // Chunks by for_each_chunk: the particles are ordered in space, so those
   // near a body (19 queries a flake) or in a pile come in runs, and with
-  // static halves the less busy thread idled for 55-65 % of ces_pcb's
-  // body-contact loops; the rest of the busier share is taken over. Handed
-  // out as threads freed up (dynamic), the chunks' buffers moved between
-  // the cores every step, and the pair loop of a 34,000-sphere bed ran no
-  // faster on two threads than on one (3.4 ms; 1.9 dealt round-robin).
-  // Dealt so, ces_pcb's narrowphase to 1 s took 3.43-4.13 s against
-  // 3.13-3.57 s on for_each_chunk (4 pairs). Each chunk fills its own
-  // list: the same contacts.
+  // static halves the less busy thread would idle through most of the
+  // body-contact loops; here it takes over the rest of the busier share.
+  // Handed out as threads free up (dynamic), the chunks' buffers would move
+  // between the cores every step, which costs the pair loop what the second
+  // thread gains. Each chunk fills its own list: the same contacts.
   for_each_chunk(count, count > 1, [&](std::size_t ch) {
     chunks[ch].clear();
     fill(ch * kChunk, std::min(n, (ch + 1) * kChunk), chunks[ch]);
@@ -203,9 +200,10 @@ void Collider::broadphase(const Model& model, const Particles& p) {
     // (translation plus the swing of its outermost sphere), so nothing tunnels.
     // The translation includes what gravity and the external forces add to
     // the velocity within the step (the forces are this step's after the
-    // collision: the last step's stand in for them, still in p.force): at a
-    // 10 ms step a charged flake pulled to the drum by its image charge at
-    // ~100 m/s^2 left a 7 mm envelope and went 6.5 mm into the drum.
+    // collision: the last step's stand in for them, still in p.force):
+    // without them, at a 10 ms step, a charged flake pulled to the drum by
+    // its image charge (~100 m/s^2) outruns its envelope and goes
+    // millimetres into the drum.
     const double bounding = s.bounding_radius * p.scale[i];
     const double speed = (p.velocity[i] + h * (model.gravity + p.inv_mass[i] * p.force[i])).norm();
     const double travel =
@@ -239,12 +237,13 @@ void Collider::narrowphase(const Model& model, const Particles& p, const Bodies&
   }
   particle_pairs(model, p, out);
   // A particle can also be struck this step by a neighbour and leave faster
-  // than it came: a light grain hit by a heavy one in a 10 m/s stream went
-  // through the plate it had no contact with. An impact with a particle of
+  // than it came: a light grain hit by a heavy one in a 10 m/s stream can
+  // go through a plate it had no contact with. An impact with a particle of
   // mass m_j changes its velocity by at most (1 + e) m_j / (m_i + m_j) of
   // their relative speed, so against bodies its envelope grows by that
   // speed times h, for each pair that is a contact this step. (Chains can
-  // pass on more; the wall guard, World::step, covers the contacts found.)
+  // pass on more; the wall guard, dynamics/safeguards.cpp, covers the
+  // contacts found.)
   // In parallel: a maximum is the same in any order.
   const auto particle_contacts = std::ptrdiff_t(used_);
 #pragma omp parallel for schedule(static) if (particle_contacts > kParallelMin)

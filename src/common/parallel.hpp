@@ -15,22 +15,20 @@ inline constexpr std::ptrdiff_t kParallelMin = 256;
 
 // A T on cache lines of its own, for the per-chunk buffers that threads
 // fill side by side (neighbouring chunks may run on different threads). A
-// std::vector's header is 24 bytes: packed, the neighbours' headers shared
-// lines, and every push_back moved a line between the cores. The
-// broadphase's sweep of a 34,000-sphere bed took 3.5-4.0 ms on two threads
-// against 3.3 on one; 1.8 ms with this.
+// std::vector's header is 24 bytes: packed, the neighbours' headers share
+// lines, and every push_back moves a line between the cores, so that two
+// threads can run the broadphase's sweep slower than one.
 template <class T>
 struct alignas(64) OwnLine : T {};
 
 // fn(c) for every chunk c in [0, count), each once, on the threads. Each
 // thread runs its own contiguous share in order, as a static schedule
 // would, then takes what is left of the others' shares from their ends.
-// On a VM whose second core runs slower at times (a neighbour on it),
-// static halves wait for the slow one: the 1e5 bed's 2-thread solve ran at
-// 38 M contact-iterations/s/core against 46 on one thread. A dynamic
-// schedule evens that out but hands chunks to whichever core is free, so
-// their data moves between the cores every pass: 3-5 % slower on a quiet
-// machine. Here a chunk changes core only when its owner is behind. What
+// On a machine whose cores run at unequal speeds at times (a VM with a busy
+// neighbour), static halves wait for the slow one. A dynamic schedule
+// evens that out but hands chunks to whichever core is free, so their data
+// moves between the cores every pass, which costs on a quiet machine.
+// Here a chunk changes core only when its owner is behind. What
 // fn computes must depend on c alone (fixed chunks), never on the thread.
 template <class Fn>
 void for_each_chunk(std::size_t count, bool parallel, Fn&& fn) {

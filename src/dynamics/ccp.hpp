@@ -1,4 +1,5 @@
-// The cone complementarity problem of one time step (DESIGN.md §4):
+// The cone complementarity problem of one time step (Anitescu, Tasora,
+// Comput. Optim. Appl. 47(2), 2010):
 //   find gamma in K with  N gamma + r in K°,  gamma ⟂ N gamma + r,
 // N = D^T M^-1 D, r = D^T v_free + b. It is the optimality condition of
 //   min f(gamma) = 1/2 gamma^T N gamma + r^T gamma  over K,
@@ -11,11 +12,13 @@
 // is bitwise the same for any number of threads. Reductions over rows go
 // through fixed chunks added in chunk order, for the same reason.
 //
-// APGD, the default, runs on a kernel of its own (apgd_step, apgd_gradient):
-// one pass over the contacts per iteration instead of five (two after a
-// rejected trial), four contacts to a SIMD vector, on world rows (a
-// contact's impulse as a world vector; ccp.cpp), so it needs only the
-// normal of a contact's frame.
+// APGD, the default, runs on a kernel of its own (apgd_step, apgd_gradient;
+// kernel.cpp): one pass over the contacts per iteration instead of five
+// (two after a rejected trial), four contacts to a SIMD vector, on world
+// rows (a contact's impulse as a world vector), so it needs only the normal
+// of a contact's frame. This file and ccp.cpp hold the problem and its
+// operator; solvers.hpp the solvers and safeguards.hpp what the step does
+// after a solve, both over the read-only view of the contacts below.
 //
 // The normals, friction coefficients and lever arms, and the bodies'
 // inverse masses and inertias, are stored in float: the kernel streams them
@@ -75,9 +78,8 @@ using Span = std::span<double>;
 using ConstSpan = std::span<const double>;
 
 // Contacts per chunk of a reduction; fixed, so sums do not depend on threads.
-// Small, so that two threads share even a few thousand contacts evenly: at
-// 2048 a flow's 5,000 contacts split 4,096 to 904, and up to 2,048 ran on
-// one thread (ces_pcb's first 0.5 s: solve 8.0 s against 9.0 s at 256).
+// Small, so that two threads share even a few thousand contacts evenly (in
+// chunks of 2,048, 5,000 contacts split 4,096 to 904).
 inline constexpr std::ptrdiff_t kReduceChunk = 256;
 
 // Bodies as the solver sees them: particles, then machine bodies.
@@ -98,20 +100,12 @@ struct BilateralRow {
   double lo = -std::numeric_limits<double>::infinity();
   double hi = std::numeric_limits<double>::infinity();
 };
-
-// The solvers' vectors. They live across steps and only grow (std::vector
-// keeps its capacity), so a run stops allocating once its contact count
-// peaks. Each solver names the buffers it takes by what it keeps in them.
-struct SolverWorkspace {
-  std::array<AlignedVector<double>, 8> row;  // vectors over the CCP's rows
-  std::vector<Vec3> v, w;                  // projected Gauss-Seidel's running velocities
-  // m rows, and a spare past them: the APGD kernel loads a contact's three
-  // impulse rows as a four-number vector.
-  Span take(std::size_t i, std::size_t m) {
-    row[i].resize(m + 1);
-    return Span(row[i].data(), m);
-  }
-};
+// The row's J v at velocities v, w (without its bias).
+double row_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w,
+                    const BilateralRow& row);
+// v, w += M^-1 J^T impulse: what the row's impulse does to its bodies.
+void apply_row(const SolverBodies& B, const BilateralRow& row, double impulse,
+               std::vector<Vec3>& v, std::vector<Vec3>& w);
 
 class CcpProblem {
  public:
@@ -155,69 +149,14 @@ class CcpProblem {
   void warm_start(const std::vector<ContactKey>& keys, const ContactMemory& previous,
                   ConstSpan prev_rows, Span x) const;
 
-  // The wall guard, after a solve (world.cpp): for each contact of a
-  // particle with a body of infinite mass (a wall, the drum, a mesh) whose
-  // row v_n + b >= 0 the solved impulses x leave violated by more than
-  // `tolerance` (m/s), adds the normal impulse that satisfies it, in
-  // Gauss-Seidel sweeps over those contacts, into x and into the
-  // velocities v, w (which must be those of x). See ccp.cpp.
-  // A body flagged in `locked` (per solver body) takes its corrections in
-  // translation only: its spin is left as it is (dynamics/safeguards.hpp).
-  //
-  // A wall has infinite mass, so the guard's rows of one particle are a
-  // problem of their own: the sweeps run body by body, in parallel, until
-  // none of the body's rows is violated, at most `max_sweeps` times.
-  // Gauss-Seidel on two rows whose normals are nearly opposite (a grain in
-  // the nip of two surfaces, a narrow wedge) gains only a fraction sin^2 of
-  // the angle between them per sweep: four sweeps left grains in the brush
-  // nip 5 radii inside the drum (docs/accuracy.md, section 4).
-  struct WallGuard {
-    std::size_t corrections = 0;  // rows corrected
-    std::size_t bodies = 0;       // bodies still violated after `first_sweeps`
-    std::size_t unconverged = 0;  // of them, left violated after max_sweeps
-    WallGuard& operator+=(const WallGuard& o) {
-      corrections += o.corrections;
-      bodies += o.bodies;
-      unconverged += o.unconverged;
-      return *this;
-    }
-  };
-  WallGuard guard_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w, double tolerance,
-                        int first_sweeps, int max_sweeps,
-                        const std::vector<std::uint8_t>* locked = nullptr) const;
-
-  // The same for every contact of a flagged body, whatever its partner
-  // (the impulse shared by both bodies): after the spin limit changed
-  // their spins. v, w need not be those of x.
-  std::size_t guard_bodies(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
-                           const std::vector<std::uint8_t>& flagged, double tolerance,
-                           int sweeps, const std::vector<std::uint8_t>* locked = nullptr) const;
-
-  // The sliding lift of the relaxed cone complementarity, taken back on
-  // walls. The CCP gives a sliding contact the normal velocity mu |v_t|
-  // (Anitescu-Tasora), so a grain landing on a surface it slips against is
-  // thrown off it (at 0.19 m/s for 0.75 m/s of slip and mu 0.5) where the
-  // Coulomb law keeps it on: restitution 0 means no rebound. For each body
-  // whose contacts are all with bodies of infinite mass (a grain on the
-  // drum, not one in a pile: there the lift is shared with the neighbours),
-  // whose pressing contacts all slide and one of whose rows exceeds its
-  // target by more than `tolerance`: its contact impulses are scaled down
-  // together (each stays on its cone, friction mu times its normal impulse)
-  // by the largest share that leaves every one of its rows at or above its
-  // target. A flat contact comes to rest on its target, as under Coulomb.
-  // Into x and into v, w (which must be those of x). Returns the bodies
-  // released.
-  std::size_t release_sliding_walls(Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
-                                    double tolerance) const;
-
-  // APGD runs on world rows (ccp.cpp, "The APGD kernel"): a contact's
-  // three rows are its impulse as a world vector, n x_n + t1 x_t1 + t2 x_t2,
-  // and its gradient J v + b n; bilateral rows as they are. The frame is
-  // orthonormal, so norms, dot products and the residual are the same.
-  // to_world and to_local change x between the two.
+  // APGD runs on world rows (kernel.cpp): a contact's three rows are its
+  // impulse as a world vector, n x_n + t1 x_t1 + t2 x_t2, and its gradient
+  // J v + b n; bilateral rows as they are. The frame is orthonormal, so
+  // norms, dot products and the residual are the same. to_world and
+  // to_local change x between the two.
   void to_world(ConstSpan x, Span P) const;
   void to_local(ConstSpan P, Span x) const;
-  // g = N P + r in world rows. P has a spare past its rows (SolverWorkspace).
+  // g = N P + r in world rows. P has a spare past its rows (RowBuffer).
   void world_gradient(ConstSpan P, Span g) const;
   // APGD's metric (solve_apgd): row i's step weight, the same for a
   // contact's three rows: 1 / (an upper bound on the largest eigenvalue of
@@ -226,15 +165,15 @@ class CcpProblem {
   // v's rows times the square roots of their metric weights.
   void scale_by_metric(Span v) const;
 
-  // APGD's iteration in one streaming pass over the contacts (and one over
-  // the bodies), four contacts to a SIMD vector (solve_apgd), on world
+  // APGD's iteration (kernel.cpp) in one streaming pass over the contacts
+  // (and one over the bodies), four contacts to a SIMD vector, on world
   // rows: apgd_gradient makes the next trial as it goes, and apgd_step
   // makes a trial alone at the start and after a rejected one. x, x1 have
-  // a spare past their rows (SolverWorkspace).
+  // a spare past their rows (RowBuffer).
   // The extrapolated point y = ca x - cb x_old and its gradient gy = ca gx -
   // cb g_old are made where they are used and never stored (cb = 0: y = x,
-  // gy = gx, and x_old, g_old are not read): storing them cost more memory
-  // traffic than the second pass's reading x_old again.
+  // gy = gx, and x_old, g_old are not read): storing them costs more memory
+  // traffic than reading x_old again in the second pass.
   struct Momentum {
     double ca = 1.0, cb = 0.0;
   };
@@ -266,8 +205,46 @@ class CcpProblem {
   TrialSums apgd_gradient(ConstSpan x1, Span g1, ConstSpan x, ConstSpan x_old, Momentum momentum,
                           TrialSums& t, const NextTrial& next) const;
 
-  // Projected Gauss-Seidel sweeps, in place (needs row access).
-  SolveStats solve_pgs(Span x, const SolverSettings& s, SolverWorkspace& ws) const;
+  // Contact k as the solvers and safeguards outside the kernel read it:
+  // its solver bodies, frame, friction coefficient, lever arms (from each
+  // body's centre of mass to the contact point) and bias b.
+  const SolverBodies& bodies() const { return *bodies_; }
+  int body_a(std::size_t k) const { return a_[k]; }
+  int body_b(std::size_t k) const { return b_[k]; }
+  Vec3 normal(std::size_t k) const {
+    const StoredScalar* f = frame_at(k);
+    return {double(f[0]), double(f[kLanes]), double(f[2 * kLanes])};
+  }
+  double friction(std::size_t k) const { return double(frame_at(k)[3 * kLanes]); }
+  // The contact's frame: the stored normal and tangents made from it.
+  struct Frame {
+    Vec3 n, t1, t2;
+  };
+  Frame frame(std::size_t k) const { return {normal(k), tangent_[2 * k], tangent_[2 * k + 1]}; }
+  Vec3 lever_a(std::size_t k) const { return lever(k, 0); }
+  Vec3 lever_b(std::size_t k) const { return lever(k, 1); }
+  double bias(std::size_t k) const { return bias_[k]; }
+  // Contact k's rows of x (its frame's) as a world vector.
+  Vec3 world_impulse(std::size_t k, ConstSpan x) const;
+  // The velocity of b's point of the contact relative to a's, at v, w.
+  Vec3 relative_velocity(std::size_t k, const std::vector<Vec3>& v,
+                         const std::vector<Vec3>& w) const {
+    const auto a = std::size_t(a_[k]), b = std::size_t(b_[k]);
+    return (v[b] + w[b].cross(lever_b(k))) - (v[a] + w[a].cross(lever_a(k)));
+  }
+  // Contact k's normal row v_n + b at velocities v, w.
+  double row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const {
+    return normal(k).dot(relative_velocity(k, v, w)) + bias_[k];
+  }
+  // A Gershgorin bound on the largest eigenvalue of contact k's 3x3 block
+  // of N, in its frame.
+  double block_bound(std::size_t k) const;
+  // Each body of finite mass's contacts, in contact order.
+  const ContactAdjacency& adjacency() const { return adj_; }
+  // The bilateral rows (x's rows from 3 contact_count() on), and N's
+  // diagonal on them.
+  const std::vector<BilateralRow>& rows() const { return rows_; }
+  double row_diagonal(std::size_t j) const { return row_diag_[j]; }
 
   // Sums acc(k, mu_k, part) over contacts k (rows 3k..3k+2) and
   // row(i, lo, hi, part) over bilateral rows i, in fixed chunks of contacts
@@ -283,15 +260,14 @@ class CcpProblem {
   void scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
   void scatter_bodies(const double* P, ConstSpan x, bool add_free, std::vector<Vec3>& dv,
                       std::vector<Vec3>& dw) const;
+  // dv, dw += M^-1 J^T x over x's bilateral rows.
+  void add_row_impulses(ConstSpan x, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
   void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, Span y) const;
   void gather_rows(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias,
                    Span y) const;
-  double block_bound(std::size_t k) const;
   // A bound on the largest eigenvalue of one body's part of a contact's
   // block of N, at lever arm r (world rows).
   double block_scale(int body, const Vec3& r) const;
-  // Contact k's normal row v_n + b at velocities v, w.
-  double row_of(std::size_t k, const std::vector<Vec3>& v, const std::vector<Vec3>& w) const;
 
   const SolverBodies* bodies_ = nullptr;
   // Contacts, structure of arrays.
@@ -312,30 +288,16 @@ class CcpProblem {
   const StoredScalar* frame_at(std::size_t k) const {
     return &frame_[k / kLanes * kFrameBlock + k % kLanes];
   }
-  Vec3 normal(std::size_t k) const {
-    const StoredScalar* f = frame_at(k);
-    return {double(f[0]), double(f[kLanes]), double(f[2 * kLanes])};
-  }
-  double friction(std::size_t k) const { return double(frame_at(k)[3 * kLanes]); }
-  // The contact's frame: the stored normal and tangents made from it.
-  struct Frame {
-    Vec3 n, t1, t2;
-  };
-  Frame frame(std::size_t k) const;
   // The tangents of contact k's frame, made from its stored normal once per
   // step: the scalar passes (warm start, the changes of rows, the scatter
-  // and gather outside the kernel, the safeguards) took a frame about ten
-  // times a step, a division each.
+  // and gather outside the kernel, PGS, the safeguards) take a frame about
+  // ten times a step, and making one costs a division.
   void make_tangents(std::size_t k);
   std::vector<Vec3> tangent_;
-  // Contact k's rows of x (its frame's) as a world vector.
-  Vec3 world_impulse(std::size_t k, ConstSpan x) const;
   Vec3 lever(std::size_t k, std::size_t side) const {
     const StoredScalar* r = &lever_[6 * k + 3 * side];
     return {double(r[0]), double(r[1]), double(r[2])};
   }
-  Vec3 lever_a(std::size_t k) const { return lever(k, 0); }
-  Vec3 lever_b(std::size_t k) const { return lever(k, 1); }
   std::vector<double> bias_;
   // APGD's metric, per block of four contacts: their step weights w, then
   // the bounds 1 / w (apgd_step scales the step by w and |d|^2 by 1 / w:
@@ -347,10 +309,10 @@ class CcpProblem {
   // inverse inertia's upper triangle (00 01 02 11 12 22), the inverse mass,
   // a bound on the inverse inertia's largest eigenvalue (the metric's); in
   // float, a third of the 80 bytes of SolverBodies' double Mat3 and mass,
-  // which were the pass's largest stream. scatter_bodies, and so
-  // N, uses them alone, so N stays symmetric and positive; the wall guard
-  // and PGS's own sweeps apply SolverBodies' doubles, which differ from
-  // them by float's rounding.
+  // which would be the pass's largest stream. scatter_bodies, and so N,
+  // uses them alone, so N stays symmetric and positive; the wall guard and
+  // PGS's own sweeps apply SolverBodies' doubles, which differ from them by
+  // float's rounding.
   static constexpr std::size_t kMassStride = 8;
   AlignedVector<StoredScalar> inverse_mass_;
   std::vector<BilateralRow> rows_;

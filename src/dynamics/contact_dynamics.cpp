@@ -150,8 +150,8 @@ void ContactDynamics::integrate(const Model& model, State& state, const Contacts
   }
   if (model.contact_model == ContactModel::DEM) return;
   // The warm start: the contacts' impulses as world vectors, and the
-  // bilateral rows' alone (a copy of the whole solution was a serial pass
-  // over the contacts' rows).
+  // bilateral rows' alone (a copy of the whole solution would be a serial
+  // pass over the contacts' rows).
   problem_.world_impulses(gamma_, impulse_scratch_);
   state.row_impulses.assign(gamma_.end() - std::ptrdiff_t(rows_.size()), gamma_.end());
   state.impulses.assign(contacts.key, impulse_scratch_);

@@ -19,6 +19,7 @@
 #include "dynamics/dem.hpp"
 #include "dynamics/joints.hpp"
 #include "dynamics/safeguards.hpp"
+#include "dynamics/solvers.hpp"
 #include "model/model.hpp"
 #include "model/state.hpp"
 #include "model/stats.hpp"

@@ -12,9 +12,37 @@ namespace {
 
 void copy(ConstSpan from, Span to) { std::copy(from.begin(), from.end(), to.begin()); }
 
+// a.b, summed in an order of its own, the same on every machine: Eigen's
+// dot sums in packets as wide as the vector unit the file is built for.
+// Eight running sums, the products of rows 8 j + l in lo[l] and of 8 j + 4
+// + l in hi[l], then lo += hi, a last four rows into lo, lo's lanes as
+// (0 + 2) + (1 + 3), and the rows past a multiple of four one by one.
+// (Under four rows: one by one.) It is the order of Eigen 3.4's dot on
+// 256-bit vectors.
 double dot(ConstSpan a, ConstSpan b) {
-  return Eigen::Map<const Eigen::VectorXd>(a.data(), std::ptrdiff_t(a.size()))
-      .dot(Eigen::Map<const Eigen::VectorXd>(b.data(), std::ptrdiff_t(b.size())));
+  const std::size_t n = a.size(), n4 = n / 4 * 4, n8 = n / 8 * 8;
+  auto product = [&](std::size_t i) { return a[i] * b[i]; };
+  double sum = n > 0 ? product(0) : 0.0;
+  if (n4 == 0) {
+    for (std::size_t i = 1; i < n; ++i) sum += product(i);
+    return sum;
+  }
+  std::array<double, 4> lo, hi;
+  for (std::size_t l = 0; l < 4; ++l) lo[l] = product(l);
+  if (n4 > 4) {
+    for (std::size_t l = 0; l < 4; ++l) hi[l] = product(4 + l);
+    for (std::size_t i = 8; i < n8; i += 8)
+      for (std::size_t l = 0; l < 4; ++l) {
+        lo[l] += product(i + l);
+        hi[l] += product(i + 4 + l);
+      }
+    for (std::size_t l = 0; l < 4; ++l) lo[l] += hi[l];
+    if (n4 > n8)
+      for (std::size_t l = 0; l < 4; ++l) lo[l] += product(n8 + l);
+  }
+  sum = (lo[0] + lo[2]) + (lo[1] + lo[3]);
+  for (std::size_t i = n4; i < n; ++i) sum += product(i);
+  return sum;
 }
 
 // The best iterate's record. Until a finite residual is met the stats say
@@ -43,10 +71,8 @@ struct Best {
 // the projection in that metric is still the plain one, contact by contact.
 // Particles from 0.5 to 2 mm of copper and FR-4 have inverse masses 300
 // times apart; with one step for all, set by the lightest, the heavy ones'
-// impulses moved 300 times too slowly. On ces_pcb.yaml to 0.5 s the
-// residual at 50 iterations fell 16-fold (median; 12-fold at the 95th
-// percentile), and 15 iterations now do what 50 did (docs/accuracy.md,
-// section 2).
+// impulses would move 300 times too slowly (docs/accuracy.md, section 2,
+// has the iterations the reference scene needs).
 // The sums of an iteration come from the kernel's pass over the rows,
 // which makes x1's gradient and, on the guess that x1 is accepted, the next
 // trial (a rejected x1 costs a trial pass more). The kernel runs on world
@@ -55,15 +81,16 @@ struct Best {
 SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, SolverWorkspace& ws) {
   const std::size_t m = p.row_count();
   if (m == 0) return {0, 0.0, true};
-  // Five buffers for iterates: x, the one before it (x_old), the best so
-  // far (kept where it lies instead of copied; it may be x or x_old), the
-  // trial x1 and the next trial, made ahead in x1's gradient pass on the
-  // guess that x1 is accepted. A trial goes where it overwrites none of the
-  // others (a backtracking step makes x1 again from x and x_old). Three for
-  // the gradients: gx, g_old and x1's.
-  std::array<Span, 5> xs = {ws.take(0, m), ws.take(1, m), ws.take(2, m), ws.take(3, m),
-                            ws.take(7, m)};
-  std::array<Span, 3> gs = {ws.take(4, m), ws.take(5, m), ws.take(6, m)};
+  // Five iterates: x, the one before it (x_old), the best so far (kept
+  // where it lies instead of copied; it may be x or x_old), the trial x1
+  // and the next trial, made ahead in x1's gradient pass on the guess that
+  // x1 is accepted. A trial goes where it overwrites none of the others (a
+  // backtracking step makes x1 again from x and x_old). Three gradients:
+  // gx, g_old and x1's.
+  std::array<Span, 5> xs;
+  std::array<Span, 3> gs;
+  for (std::size_t i = 0; i < xs.size(); ++i) xs[i] = ws.apgd.iterates[i].take(m);
+  for (std::size_t i = 0; i < gs.size(); ++i) gs[i] = ws.apgd.gradients[i].take(m);
   std::size_t ix = 0, iold = 1, ibest = 2, i1 = 3, gx = 0, gold = 1, g1 = 2;
   p.to_world(out, xs[ix]);
   p.world_gradient(xs[ix], gs[gx]);
@@ -139,8 +166,9 @@ SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, Span x, Solve
   constexpr int kMemory = 10;
   constexpr double kSufficient = 1e-4;
   const double alpha_min = 1e-10 / p.diagonal_max(), alpha_max = 1e10 / p.diagonal_max();
-  const Span r = ws.take(0, m), g = ws.take(1, m), d = ws.take(2, m), nd = ws.take(3, m),
-             best = ws.take(4, m);
+  SolverWorkspace::Spg& buffers = ws.spg;
+  const Span r = buffers.bias.take(m), g = buffers.gradient.take(m), d = buffers.direction.take(m),
+             nd = buffers.product.take(m), best = buffers.best.take(m);
   p.project(x);
   std::fill(d.begin(), d.end(), 0.0);
   p.gradient(d, r);
@@ -190,11 +218,89 @@ SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, Span x, Solve
   return record.stats;
 }
 
+// Projected Gauss-Seidel (Anitescu, Tasora, Comput. Optim. Appl.
+// 47(2), 2010): contact by contact, then bilateral row by row, each
+// projected step applied at once to the running velocities v, w, which the
+// next rows read.
+namespace {
+
+// One sweep over the contacts, contact k's rows by its step steps[k].
+void pgs_contacts(const CcpProblem& p, ConstSpan steps, Span x, std::vector<Vec3>& v,
+                  std::vector<Vec3>& w) {
+  const SolverBodies& B = p.bodies();
+  for (std::size_t k = 0; k < p.contact_count(); ++k) {
+    const double step = steps[k];
+    if (step <= 0.0) continue;
+    const Vec3 ra = p.lever_a(k), rb = p.lever_b(k);
+    const auto [n, t1, t2] = p.frame(k);
+    const Vec3 rel = p.relative_velocity(k, v, w);
+    const std::size_t i = 3 * k;
+    double gn = x[i] - step * (n.dot(rel) + p.bias(k));
+    double g1 = x[i + 1] - step * t1.dot(rel);
+    double g2 = x[i + 2] - step * t2.dot(rel);
+    project_cone(p.friction(k), gn, g1, g2);
+    const Vec3 dP = n * (gn - x[i]) + t1 * (g1 - x[i + 1]) + t2 * (g2 - x[i + 2]);
+    x[i] = gn;
+    x[i + 1] = g1;
+    x[i + 2] = g2;
+    const auto a = std::size_t(p.body_a(k)), b = std::size_t(p.body_b(k));
+    v[a] -= B.inv_mass[a] * dP;
+    w[a] -= B.inv_inertia[a] * ra.cross(dP);
+    v[b] += B.inv_mass[b] * dP;
+    w[b] += B.inv_inertia[b] * rb.cross(dP);
+  }
+}
+
+// One sweep over the bilateral rows, row j's by relaxation / N_jj.
+void pgs_rows(const CcpProblem& p, double relaxation, Span x, std::vector<Vec3>& v,
+              std::vector<Vec3>& w) {
+  const std::size_t base = 3 * p.contact_count();
+  for (std::size_t j = 0; j < p.rows().size(); ++j) {
+    const double diagonal = p.row_diagonal(j);
+    if (diagonal <= 0.0) continue;
+    const BilateralRow& row = p.rows()[j];
+    double& xi = x[base + j];
+    const double next = std::clamp(
+        xi - relaxation / diagonal * (row_velocity(v, w, row) + row.bias), row.lo, row.hi);
+    apply_row(p.bodies(), row, next - xi, v, w);
+    xi = next;
+  }
+}
+
+}  // namespace
+
+SolveStats solve_pgs(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws) {
+  std::vector<Vec3>& v = ws.pgs.v;
+  std::vector<Vec3>& w = ws.pgs.w;
+  p.velocities(x, v, w);
+  const std::size_t nc = p.contact_count();
+  // One step per contact block: with the normal row's 1/diag alone, a
+  // cluster's tangential rows (large lever arms) are over-stepped and diverge.
+  const Span steps = ws.pgs.steps.take(nc), g = ws.pgs.gradient.take(x.size());
+  for (std::size_t k = 0; k < nc; ++k) {
+    const double bound = p.block_bound(k);
+    steps[k] = bound > 0.0 ? s.pgs_relaxation / bound : 0.0;
+  }
+  SolveStats stats;
+  for (int it = 0; it < s.max_iterations; ++it) {
+    pgs_contacts(p, steps, x, v, w);
+    pgs_rows(p, s.pgs_relaxation, x, v, w);
+    stats.iterations = it + 1;
+    p.gradient(x, g);
+    stats.residual = p.residual(x, g);
+    if (stats.residual <= s.tolerance) {
+      stats.converged = true;
+      break;
+    }
+  }
+  return stats;
+}
+
 SolveStats solve(const CcpProblem& p, const SolverSettings& s, Span x, SolverWorkspace& ws) {
   switch (s.method) {
     case SolverMethod::APGD: return solve_apgd(p, s, x, ws);
     case SolverMethod::SPG: return solve_spg(p, s, x, ws);
-    case SolverMethod::PGS: return p.solve_pgs(x, s, ws);
+    case SolverMethod::PGS: return solve_pgs(p, s, x, ws);
   }
   return {};
 }

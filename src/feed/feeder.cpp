@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <sstream>
 #include <string>
 
 #include "common/hash.hpp"
@@ -213,6 +214,49 @@ void Feeder::find_neighbours(const State& state) {
     if (outside.squaredNorm() <= reach * reach) neighbours_.push_back(i);
   }
   neighbours_valid_ = true;
+}
+
+void Feeder::save(ByteWriter& out) const {
+  std::ostringstream rng;
+  rng << rng_;
+  out.text(rng.str());
+  out.values(stats_.fed);
+  out.value(stats_.retries);
+  out.value(stats_.deferrals);
+  out.value(pending_.has_value());
+  const Candidate c = pending_.value_or(Candidate{});
+  out.value(c.component);
+  out.value(c.shape);
+  out.value(c.scale);
+  out.value(c.mass);
+  out.value(c.inertia);
+  out.value(owing_);
+  out.value(max_bounding_radius_);
+}
+
+void Feeder::load(ByteReader& in) {
+  std::istringstream rng(in.text());
+  rng >> rng_;
+  if (!rng) throw CorruptData("feed '" + feed_.name + "': its random stream does not read");
+  in.values(stats_.fed);
+  if (stats_.fed.size() != feed_.mix.size())
+    throw CorruptData("feed '" + feed_.name + "': its mix has changed");
+  in.value(stats_.retries);
+  in.value(stats_.deferrals);
+  const bool pending = in.value<bool>();
+  Candidate c;
+  in.value(c.component);
+  in.value(c.shape);
+  in.value(c.scale);
+  in.value(c.mass);
+  in.value(c.inertia);
+  if (c.component < 0 || std::size_t(c.component) >= feed_.mix.size() || c.shape < 0 ||
+      std::size_t(c.shape) >= model_->shapes.size())
+    throw CorruptData("feed '" + feed_.name + "': its pending particle does not fit the scene");
+  pending_ = pending ? std::optional<Candidate>(c) : std::nullopt;
+  in.value(owing_);
+  in.value(max_bounding_radius_);
+  neighbours_valid_ = false;
 }
 
 // 53 random bits from the raw engine: the same numbers with every standard

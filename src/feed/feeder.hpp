@@ -19,6 +19,7 @@
 #include <string_view>
 #include <vector>
 
+#include "common/serial.hpp"
 #include "common/tally.hpp"
 #include "feed/feed.hpp"
 #include "geometry/shapes.hpp"
@@ -54,6 +55,12 @@ class Feeder {
   double fed_amount() const;
   // The feed's time is over at t and the last step placed everything it owed.
   bool finished(double t) const;
+
+  // What the feed carries from one step to the next (its random stream,
+  // tallies, the particle drawn but not yet placed, whether it owes one),
+  // for checkpoints.
+  void save(ByteWriter& out) const;
+  void load(ByteReader& in);
 
  private:
   struct Candidate {

@@ -26,12 +26,11 @@ inline constexpr std::uint64_t kBodyTag = std::uint64_t{1} << 63;
 // the warm start's impulses, DEM's tangential springs. Lookups try the
 // key's place in the last step's order first (a cursor); those that miss go
 // to a hash table (linear probing, at most half full), built on the first
-// miss: O(n) for n keys, where sorting them cost n log n a step on one
-// thread (the collider emits contacts in particle-index order, which the
-// spatial reordering makes unlike key order: in ces_pcb at 2 threads that
-// sort took 4.5 % of the main thread's time while the other waited). A
-// key finds its value whatever order the keys were stored in, so what a
-// step finds does not depend on threads.
+// miss: O(n) for n keys, where sorting them would cost n log n a step on
+// one thread while the others wait (the collider emits contacts in
+// particle-index order, which the spatial reordering makes unlike key
+// order). A key finds its value whatever order the keys were stored in, so
+// what a step finds does not depend on threads.
 class ContactMemory {
  public:
   // Replaces the contents by keys[k] -> values[k]. The keys are distinct
@@ -44,7 +43,7 @@ class ContactMemory {
   // The same, trying first the key stored at `cursor` and moving it past
   // the key found: a scan in the order the keys were stored reads them in
   // sequence and never builds the table (a bed at rest), where hashed
-  // lookups cost a cache miss each (75 ns at 3e5 contacts). Safe to call
+  // lookups cost a cache miss each. Safe to call
   // from several threads at once.
   const Vec3* find(const ContactKey& key, std::size_t& cursor) const;
   std::size_t size() const { return keys_.size(); }

@@ -53,6 +53,55 @@ void Particles::permute(const std::vector<std::uint32_t>& order, Particles& scra
       kParticleArrays);
 }
 
+namespace {
+
+void save(ByteWriter& out, const ContactMemory& m) {
+  out.values(m.keys());
+  out.values(m.values());
+}
+
+void load(ByteReader& in, ContactMemory& m) {
+  std::vector<ContactKey> keys;
+  std::vector<Vec3> values;
+  in.values(keys);
+  in.values(values);
+  if (keys.size() != values.size()) throw CorruptData("a contact memory's keys and values differ");
+  m.assign(keys, values);
+}
+
+}  // namespace
+
+void save(ByteWriter& out, const State& s) {
+  std::apply([&](auto... member) { (out.values(s.particles.*member), ...); }, kParticleArrays);
+  const Bodies& b = s.bodies;
+  for (const auto* v : {&b.velocity, &b.angular_velocity, &b.force, &b.torque}) out.values(*v);
+  out.values(b.pose);
+  out.value(s.time);
+  out.value(s.steps);
+  out.value(s.next_id);
+  save(out, s.impulses);
+  out.values(s.row_impulses);
+  save(out, s.springs);
+}
+
+void load(ByteReader& in, State& s) {
+  std::apply([&](auto... member) { (in.values(s.particles.*member), ...); }, kParticleArrays);
+  const std::size_t n = s.particles.size();
+  std::apply([&](auto... member) {
+    if ((((s.particles.*member).size() != n) || ...))
+      throw CorruptData("the particle arrays differ in length");
+  }, kParticleArrays);
+  Bodies& b = s.bodies;
+  for (auto* v : {&b.velocity, &b.angular_velocity, &b.force, &b.torque}) in.values(*v);
+  in.values(b.pose);
+  in.value(s.time);
+  in.value(s.steps);
+  in.value(s.next_id);
+  load(in, s.impulses);
+  in.values(s.row_impulses);
+  load(in, s.springs);
+}
+
 void init_state(const Model& model, State& state) {
   const std::size_t nb = model.bodies.size();
   Bodies& b = state.bodies;

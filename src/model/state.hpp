@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/math.hpp"
+#include "common/serial.hpp"
 #include "model/contact_memory.hpp"
 #include "model/model.hpp"
 
@@ -76,6 +77,11 @@ struct State {
   // DEM: each contact's accumulated tangential displacement, by key.
   ContactMemory springs;
 };
+
+// The whole state as bytes (checkpoints), and back: a state read back
+// steps on to the same bits as the one written.
+void save(ByteWriter& out, const State& state);
+void load(ByteReader& in, State& state);
 
 // The state at t = 0: the bodies at their initial pose and velocity, no
 // particles.

@@ -84,4 +84,18 @@ void EnergyLedger::after_collectors(const State& state) {
   balance_.dissipated = balance_.initial + balance_.fed - balance_.removed - balance_.final;
 }
 
+void EnergyLedger::save(ByteWriter& out) const {
+  const EnergyBalance& b = balance_;
+  for (const double v : {b.initial, b.fed, b.removed, b.final, b.dissipated, b.max_gain,
+                         b.peak_kinetic, last_, dynamics_, lowest_})
+    out.value(v);
+}
+
+void EnergyLedger::load(ByteReader& in) {
+  EnergyBalance& b = balance_;
+  for (double* v : {&b.initial, &b.fed, &b.removed, &b.final, &b.dissipated, &b.max_gain,
+                    &b.peak_kinetic, &last_, &dynamics_, &lowest_})
+    in.value(*v);
+}
+
 }  // namespace ces::output

@@ -21,6 +21,7 @@
 #pragma once
 #include <string>
 
+#include "common/serial.hpp"
 #include "model/model.hpp"
 #include "model/state.hpp"
 #include "model/stats.hpp"
@@ -56,6 +57,10 @@ class EnergyLedger {
   // sides of the collect stage (after integrate, after collect).
   void after(Stage stage, const State& state);
   const EnergyBalance& balance() const { return balance_; }
+
+  // The sums so far, for checkpoints.
+  void save(ByteWriter& out) const;
+  void load(ByteReader& in);
 
  private:
   void after_feeds(const State& state);

@@ -90,4 +90,54 @@ void AtomicFile::discard() noexcept {
   std::filesystem::remove(tmp_, ignored);
 }
 
+AppendFile::AppendFile(const std::filesystem::path& path) : path_(path) {
+  file_ = std::fopen(path_.c_str(), "wb");
+  if (!file_) fail("create", path_);
+}
+
+AppendFile::AppendFile(const std::filesystem::path& path, std::uint64_t resume_at) : path_(path) {
+  std::error_code error;
+  if (std::filesystem::file_size(path_, error) < resume_at || error)
+    throw IoError("cannot resume " + path_.string() + ": it is shorter than the checkpoint says");
+  std::filesystem::resize_file(path_, resume_at, error);
+  if (error) throw IoError("cannot cut " + path_.string() + ": " + error.message());
+  file_ = std::fopen(path_.c_str(), "ab");
+  if (!file_) fail("open", path_);
+}
+
+AppendFile::AppendFile(AppendFile&& other) noexcept
+    : path_(std::move(other.path_)), file_(std::exchange(other.file_, nullptr)) {}
+
+AppendFile& AppendFile::operator=(AppendFile&& other) noexcept {
+  if (this != &other) {
+    if (file_) std::fclose(file_);
+    path_ = std::move(other.path_);
+    file_ = std::exchange(other.file_, nullptr);
+  }
+  return *this;
+}
+
+AppendFile::~AppendFile() {
+  if (file_) std::fclose(file_);
+}
+
+void AppendFile::write(std::string_view bytes) {
+  if (!file_) throw IoError("write to a closed file " + path_.string());
+  if (std::fwrite(bytes.data(), 1, bytes.size(), file_) != bytes.size()) fail("write", path_);
+}
+
+std::uint64_t AppendFile::flush() {
+  if (!file_) return 0;
+  if (std::fflush(file_) != 0 || ::fsync(::fileno(file_)) != 0) fail("write", path_);
+  const long at = std::ftell(file_);
+  if (at < 0) fail("measure", path_);
+  return std::uint64_t(at);
+}
+
+void AppendFile::close() {
+  if (!file_) return;
+  flush();
+  if (std::fclose(std::exchange(file_, nullptr)) != 0) fail("close", path_);
+}
+
 }  // namespace ces::output

@@ -17,10 +17,10 @@ double percentile(const std::vector<double>& sorted, double p) {
 
 }  // namespace
 
-StepLog::StepLog(const std::filesystem::path& steps_csv, int max_iterations)
-    : max_iterations_(max_iterations) {
-  if (steps_csv.empty()) return;
-  file_ = AtomicFile(steps_csv);
+StepLog::StepLog(const std::filesystem::path& steps_csv, int max_iterations, Start start)
+    : path_(steps_csv), max_iterations_(max_iterations) {
+  if (steps_csv.empty() || start == Start::Resume) return;
+  file_ = AppendFile(steps_csv);
   file_.write(
       "step,time_s,particles,contacts,iterations,residual_mps,max_penetration_m,"
       "max_penetration_rel,wall_s\n");
@@ -75,8 +75,21 @@ SolverSummary StepLog::summary() const {
   return s;
 }
 
-void StepLog::commit() {
-  if (file_.is_open()) file_.commit();
+void StepLog::close() { file_.close(); }
+
+void StepLog::save(ByteWriter& out) {
+  out.value(sum_);
+  out.value(iterations_total_);
+  out.values(residuals_);
+  out.value(file_.flush());
+}
+
+void StepLog::load(ByteReader& in) {
+  in.value(sum_);
+  in.value(iterations_total_);
+  in.values(residuals_);
+  const auto length = in.value<std::uint64_t>();
+  if (!path_.empty()) file_ = AppendFile(path_, length);
 }
 
 }  // namespace ces::output

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "common/serial.hpp"
 #include "model/stats.hpp"
 #include "output/files.hpp"
 
@@ -30,7 +31,7 @@ struct SolverSummary {
   std::uint64_t steps_impulses_scaled = 0;
   std::uint64_t wall_corrections = 0;
   // Bodies whose wall rows the guard finished body by body, and those it
-  // could not (CcpProblem::guard_walls), summed over steps.
+  // could not (dynamics/safeguards.cpp), summed over steps.
   std::uint64_t walls_finished = 0, walls_unfinished = 0;
   std::uint64_t sliding_releases = 0;  // bodies released from their lift, summed over steps
   std::uint64_t spin_limited = 0;      // clumps in contact whose spin was capped, summed over steps
@@ -47,16 +48,22 @@ struct SolverSummary {
 class StepLog {
  public:
   // An empty path: statistics only, no steps.csv.
-  StepLog(const std::filesystem::path& steps_csv, int max_iterations);
+  StepLog(const std::filesystem::path& steps_csv, int max_iterations, Start start = Start::Fresh);
 
   // wall_s: the step's stages before the output stage that records it.
   void record(const StepStats& s);
   SolverSummary summary() const;
-  // Publishes steps.csv with every step recorded so far.
-  void commit();
+  // steps.csv complete on the disk (the run's end).
+  void close();
+
+  // The sums so far and steps.csv's length, for checkpoints; load() cuts
+  // steps.csv back to the length it records and appends from there.
+  void save(ByteWriter& out);
+  void load(ByteReader& in);
 
  private:
-  AtomicFile file_;
+  std::filesystem::path path_;
+  AppendFile file_;
   int max_iterations_;
   SolverSummary sum_;
   std::uint64_t iterations_total_ = 0;

@@ -279,6 +279,14 @@ void add_warnings(RunRecord& r) {
   if (!balanced(r, fates(r))) warn("internal: particle balance does not close");
 }
 
+// How the steps' thread counts were chosen and how many steps ran at each.
+Json threads_json(const RunRecord& r) {
+  Json steps = Json::object();
+  for (std::size_t n = 1; n < r.steps_at_threads.size(); ++n)
+    if (r.steps_at_threads[n] > 0) steps[std::to_string(n)] = r.steps_at_threads[n];
+  return {{"by", r.threads_adaptive ? "timing (adaptive)" : "fixed"}, {"steps_at", steps}};
+}
+
 std::string summary_json(const RunRecord& r) {
   const Simulation& sim = *r.sim;
   Json j = {{"tool", "ces-sim"},
@@ -288,6 +296,7 @@ std::string summary_json(const RunRecord& r) {
             {"scene", {{"name", sim.name}, {"path", sim.scene_path}, {"hash", sim.scene_hash}}},
             {"seed", sim.seed},
             {"threads", r.threads},
+            {"threads_chosen", threads_json(r)},
             {"step_s", sim.model->step},
             {"end_time_s", sim.end_time},
             {"steps", r.steps},
@@ -302,7 +311,8 @@ std::string summary_json(const RunRecord& r) {
             {"spawn", spawn_json(r)},
             {"trajectory_frames", r.frames},
             {"active_components", sim.active_components},
-            {"warnings", r.warnings}};
+            {"warnings", r.warnings},
+            {"files", r.files}};
   return j.dump(2) + "\n";
 }
 

@@ -32,7 +32,9 @@ struct RunRecord {
   std::string reason;
   std::uint64_t steps = 0;
   double time = 0.0;  // simulated (s)
-  int threads = 1;
+  int threads = 1;              // the most a step used
+  bool threads_adaptive = false;  // chosen step by step (sim/threads.hpp)
+  std::vector<std::uint64_t> steps_at_threads;  // index = thread count
   double wall = 0.0;  // s
   SolverSummary solver;
   EnergyBalance energy;
@@ -42,6 +44,7 @@ struct RunRecord {
   std::vector<ProductResult> products;
   std::size_t frames = 0;
   std::vector<std::string> warnings;
+  std::vector<std::string> files;  // the run's outputs, relative to its folder
 };
 
 // What a user should look at twice: solver caps, deep overlaps, deferred or

@@ -48,15 +48,15 @@ void line(std::string& out, auto value) {
 }  // namespace
 
 TrajectoryWriter::TrajectoryWriter(const std::filesystem::path& dir, const Simulation& sim,
-                                   std::vector<double> shape_size)
+                                   std::vector<double> shape_size, Start start)
     : dir_(dir),
       sim_(&sim),
       shape_size_(std::move(shape_size)),
       every_(sim.output.trajectories.every) {
   if (every_ <= 0.0) return;
   if (sim.output.trajectories.vtk) std::filesystem::create_directories(dir_ / "trajectories");
-  if (sim.output.trajectories.csv) {
-    csv_ = AtomicFile(dir_ / "trajectories.csv");
+  if (sim.output.trajectories.csv && start == Start::Fresh) {
+    csv_ = AppendFile(dir_ / "trajectories.csv");
     csv_.write("time_s,id,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,diameter_m,material\n");
   }
 }
@@ -73,8 +73,38 @@ void TrajectoryWriter::observe(const State& state) {
   if (csv_.is_open()) append_csv(state);
 }
 
-void TrajectoryWriter::commit() {
-  if (csv_.is_open()) csv_.commit();
+void TrajectoryWriter::close() { csv_.close(); }
+
+std::vector<std::string> TrajectoryWriter::files() const {
+  std::vector<std::string> out;
+  if (every_ <= 0.0) return out;
+  if (sim_->output.trajectories.csv) out.push_back("trajectories.csv");
+  if (!sim_->output.trajectories.vtk || frame_times_.empty()) return out;
+  out.push_back("trajectories.pvd");
+  for (std::size_t k = 0; k < frame_times_.size(); ++k)
+    out.push_back("trajectories/" + frame_name(k));
+  return out;
+}
+
+void TrajectoryWriter::save(ByteWriter& out) {
+  out.value(next_frame_);
+  out.values(frame_times_);
+  out.value(csv_.flush());
+}
+
+void TrajectoryWriter::load(ByteReader& in) {
+  in.value(next_frame_);
+  in.values(frame_times_);
+  const auto length = in.value<std::uint64_t>();
+  if (every_ <= 0.0) return;
+  if (sim_->output.trajectories.csv) csv_ = AppendFile(dir_ / "trajectories.csv", length);
+  if (!sim_->output.trajectories.vtk) return;
+  // Frames after the checkpoint: written again as the run goes on.
+  for (std::size_t k = frame_times_.size();; ++k) {
+    const std::filesystem::path frame = dir_ / "trajectories" / frame_name(k);
+    if (!std::filesystem::remove(frame)) break;
+  }
+  if (!frame_times_.empty()) write_pvd();
 }
 
 void TrajectoryWriter::sort_by_id(const Particles& p) {

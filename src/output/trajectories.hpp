@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "common/serial.hpp"
 #include "model/state.hpp"
 #include "output/files.hpp"
 #include "spec/simulation.hpp"
@@ -20,13 +21,20 @@ namespace ces::output {
 class TrajectoryWriter {
  public:
   TrajectoryWriter(const std::filesystem::path& dir, const Simulation& sim,
-                   std::vector<double> shape_size);
+                   std::vector<double> shape_size, Start start = Start::Fresh);
 
   // Writes a frame if one is due at state.time.
   void observe(const State& state);
-  // Publishes trajectories.csv.
-  void commit();
+  // trajectories.csv complete on the disk (the run's end).
+  void close();
   std::size_t frames() const { return frame_times_.size(); }
+  // The files written so far, relative to the output folder.
+  std::vector<std::string> files() const;
+
+  // The frames so far and trajectories.csv's length, for checkpoints; load()
+  // removes the frames written after the checkpoint and cuts the csv back.
+  void save(ByteWriter& out);
+  void load(ByteReader& in);
 
  private:
   void sort_by_id(const Particles& p);
@@ -40,7 +48,7 @@ class TrajectoryWriter {
   double every_ = 0.0;
   std::uint64_t next_frame_ = 0;
   std::vector<double> frame_times_;
-  AtomicFile csv_;
+  AppendFile csv_;
   std::vector<std::size_t> order_;  // particle indices by id
   std::string text_;                // reused frame buffer
 };

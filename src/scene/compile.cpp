@@ -1000,6 +1000,7 @@ class Compiler {
       sim_.output.trajectories = {0.0, false, false};
     }
     if (const Node* field = out.find("field")) read_field_picture(*field);
+    if (const Node* c = out.find("checkpoint")) sim_.output.checkpoint_every = c->at("every").number();
   }
 
   // More samples than this would make a field.csv of hundreds of MB.

@@ -6,6 +6,7 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -23,7 +24,10 @@
 #include "output/summary.hpp"
 #include "output/tables.hpp"
 #include "output/trajectories.hpp"
+#include "sim/checkpoint.hpp"
+#include "sim/output_folder.hpp"
 #include "sim/stop.hpp"
+#include "sim/threads.hpp"
 #include "sim/world.hpp"
 
 namespace ces {
@@ -60,33 +64,6 @@ class StopSignals {
   struct sigaction old_term_ = {};
 };
 
-// Removes what an earlier run left under the names this run writes, so a
-// folder never mixes two runs (a stale summary.json saying complete, say).
-void clear_previous_outputs(const fs::path& dir) {
-  for (const char* name : {"summary.json", "bins.csv", "products.csv", "crossings.csv", "lost.csv",
-                           "steps.csv", "scene.resolved.yaml", "distribution.svg", "field.csv",
-                           "field.svg", "trajectories.pvd", "trajectories.csv"}) {
-    fs::remove(dir / name);
-    fs::remove(dir / (std::string(name) + ".tmp"));
-  }
-  if (!fs::is_directory(dir / "trajectories")) return;
-  for (const fs::directory_entry& e : fs::directory_iterator(dir / "trajectories"))
-    if (e.path().extension() == ".vtp" && e.path().stem().string().starts_with("frame_"))
-      fs::remove(e.path());
-}
-
-fs::path prepare_output_dir(const Simulation& sim, const RunOptions& options) {
-  const fs::path dir = options.out_dir.empty() ? sim.output.dir : options.out_dir;
-  try {
-    fs::create_directories(dir);
-    clear_previous_outputs(dir);
-  } catch (const fs::filesystem_error& e) {
-    throw output::IoError("cannot prepare the output folder " + dir.string() + ": " +
-                          e.code().message());
-  }
-  return dir;
-}
-
 // One progress line on stderr, redrawn at most five times a second.
 class Progress {
  public:
@@ -118,11 +95,11 @@ class Progress {
 // The outputs that watch the run as it goes; they only read the world.
 class Observers : public StepObserver {
  public:
-  Observers(const Simulation& sim, const fs::path& dir, const World& world)
+  Observers(const Simulation& sim, const fs::path& dir, const World& world, output::Start start)
       : sim_(sim),
         steps_(sim.output.steps_csv ? dir / "steps.csv" : fs::path(),
-               sim.model->solver.max_iterations),
-        trajectories_(dir, sim, shape_sizes(sim)),
+               sim.model->solver.max_iterations, start),
+        trajectories_(dir, sim, shape_sizes(sim), start),
         energy_(sim, world.state()) {}
 
   void after(Stage stage, const World& world) override { energy_.after(stage, world.state()); }
@@ -139,9 +116,27 @@ class Observers : public StepObserver {
   }
 
   void start(const World& world) { trajectories_.observe(world.state()); }  // the frame at t = 0
-  void commit() {
-    steps_.commit();
-    trajectories_.commit();
+  void close() {
+    steps_.close();
+    trajectories_.close();
+  }
+  void save(ByteWriter& out) {
+    steps_.save(out);
+    trajectories_.save(out);
+    energy_.save(out);
+    out.value(rayleigh_warned_);
+  }
+  void load(ByteReader& in) {
+    steps_.load(in);
+    trajectories_.load(in);
+    energy_.load(in);
+    in.value(rayleigh_warned_);
+  }
+  // Written as the run goes, relative to its folder.
+  std::vector<std::string> files() const {
+    std::vector<std::string> out = trajectories_.files();
+    if (sim_.output.steps_csv) out.push_back("steps.csv");
+    return out;
   }
   output::SolverSummary solver() const { return steps_.summary(); }
   const output::EnergyBalance& energy() const { return energy_.balance(); }
@@ -155,36 +150,66 @@ class Observers : public StepObserver {
   bool rayleigh_warned_ = false;
 };
 
+// What summary.json says until the run writes why it ended.
+constexpr const char* kNoEnd =
+    "no end recorded: the run is still going, or its process was killed (SIGKILL, out of "
+    "memory) or its machine stopped";
+
 class Runner {
  public:
-  Runner(const Simulation& sim, const RunOptions& options);
+  // resume: the body of a checkpoint of this scene, or null for a new run.
+  Runner(const Simulation& sim, const RunOptions& options, const std::string* resume);
   RunResult run();
 
  private:
+  void start();
   void write_field_picture();
   void step_to_end();
+  void checkpoint();
   void write_outputs();
+  void write_summary(const output::RunRecord& r);
+  std::vector<std::string> files() const;
   output::RunRecord record() const;
   void tally_feeds(output::RunRecord& r) const;
   void tally_active(output::RunRecord& r) const;
 
   const Simulation& sim_;
   RunOptions options_;
+  const std::string* resume_;
   Clock::time_point start_ = Clock::now();
-  fs::path dir_;
+  OutputFolder folder_;
+  fs::path dir_;  // the folder written while the run goes: folder_.work()
   World world_;
   Observers observers_;
+  ThreadGovernor threads_;
+  std::uint64_t checkpoint_steps_;  // steps between checkpoints; 0: none
   double output_seconds_ = 0.0;  // the output stage's, and the writing before and after the steps
   bool complete_ = false;
-  std::string reason_ = "running";
+  std::string reason_ = kNoEnd;
 };
 
-Runner::Runner(const Simulation& sim, const RunOptions& options)
+fs::path output_dir(const Simulation& sim, const RunOptions& options) {
+  return options.out_dir.empty() ? fs::path(sim.output.dir) : fs::path(options.out_dir);
+}
+
+output::Start start_of(const std::string* resume) {
+  return resume ? output::Start::Resume : output::Start::Fresh;
+}
+
+Runner::Runner(const Simulation& sim, const RunOptions& options, const std::string* resume)
     : sim_(sim),
       options_(options),
-      dir_(prepare_output_dir(sim, options)),
+      resume_(resume),
+      folder_(output_dir(sim, options), start_of(resume)),
+      dir_(folder_.work()),
       world_(sim),
-      observers_(sim, dir_, world_) {}
+      observers_(sim, dir_, world_, start_of(resume)),
+      threads_(sim.model->threads > 0 ? sim.model->threads : omp_get_max_threads(),
+               sim.model->threads == 0),
+      checkpoint_steps_(sim.output.checkpoint_every > 0.0
+                            ? std::uint64_t(std::max(
+                                  1.0, std::round(sim.output.checkpoint_every / sim.model->step)))
+                            : 0) {}
 
 // A property of the machine, not of the run: written first, so an
 // interrupted run still has it.
@@ -197,62 +222,136 @@ void Runner::write_field_picture() {
   output_seconds_ += seconds_since(t0);
 }
 
-RunResult Runner::run() {
-  const StopSignals signals;
+// A new run writes what it knows before its first step; a resumed one
+// reads its checkpoint back.
+void Runner::start() {
+  if (resume_) {
+    ByteReader in(*resume_);
+    world_.load(in);
+    observers_.load(in);
+    if (!in.at_end()) throw CorruptData("the checkpoint holds more than this scene's run");
+    return;
+  }
   if (!sim_.resolved_yaml.empty())
     output::write_file_atomic(dir_ / "scene.resolved.yaml", sim_.resolved_yaml);
   // A summary from the start: a run killed outright still says it did not finish.
   output::write_file_atomic(dir_ / "summary.json", output::summary_json(record()));
   write_field_picture();
-  step_to_end();
+  observers_.start(world_);
+}
+
+RunResult Runner::run() {
+  const StopSignals signals;
+  try {
+    start();
+    step_to_end();
+  } catch (const std::exception& e) {
+    reason_ = "error after " + std::to_string(world_.step_count()) +
+              " steps (t = " + output::format_number(world_.time()) + " s): " + e.what();
+  }
   write_outputs();
-  return {complete_, complete_ ? std::string() : reason_, dir_.string()};
+  return {complete_, complete_ ? std::string() : reason_,
+          (complete_ ? folder_.dir() : dir_).string()};
 }
 
 void Runner::step_to_end() {
   const auto steps = std::uint64_t(std::llround(sim_.end_time / sim_.model->step));
   Progress progress(options_.progress && !options_.quiet);
-  try {
-    observers_.start(world_);
-    while (world_.step_count() < steps) {
-      if (g_stop_signal != 0) {
-        reason_ = g_stop_signal == SIGINT ? "interrupted by SIGINT" : "interrupted by SIGTERM";
-        return;
-      }
-      output_seconds_ += world_.step(&observers_).seconds[Stage::Output];
-      progress.update(world_, sim_.end_time, seconds_since(start_));
-      if (sim_.until_collected && feed_accounted_for(world_)) break;
-    }
-    if (sim_.until_collected && !feed_accounted_for(world_)) {
-      reason_ = cap_message(sim_, world_);
+  while (world_.step_count() < steps) {
+    if (g_stop_signal != 0) {
+      reason_ = g_stop_signal == SIGINT ? "interrupted by SIGINT" : "interrupted by SIGTERM";
       return;
     }
-    complete_ = true;
-  } catch (const std::exception& e) {
-    reason_ = "error after " + std::to_string(world_.step_count()) +
-              " steps (t = " + output::format_number(world_.time()) + " s): " + e.what();
+    omp_set_num_threads(threads_.next());
+    const auto t0 = Clock::now();
+    output_seconds_ += world_.step(&observers_).seconds[Stage::Output];
+    threads_.took(seconds_since(t0));
+    if (checkpoint_steps_ > 0 && world_.step_count() % checkpoint_steps_ == 0) checkpoint();
+    progress.update(world_, sim_.end_time, seconds_since(start_));
+    if (sim_.until_collected && feed_accounted_for(world_)) break;
   }
+  if (sim_.until_collected && !feed_accounted_for(world_)) {
+    reason_ = cap_message(sim_, world_);
+    return;
+  }
+  complete_ = true;
 }
 
+// The whole state, then a summary that says how far the run got.
+void Runner::checkpoint() {
+  const auto t0 = Clock::now();
+  ByteWriter body;
+  world_.save(body);
+  observers_.save(body);
+  write_checkpoint(dir_ / "checkpoint.bin",
+                   {sim_.scene_path, sim_.scene_hash, sim_.resolved_yaml, body.bytes()});
+  output::write_file_atomic(dir_ / "summary.json", output::summary_json(record()));
+  output_seconds_ += seconds_since(t0);
+}
+
+std::vector<std::string> Runner::files() const {
+  std::vector<std::string> out = {"summary.json", "bins.csv", "products.csv", "crossings.csv",
+                                  "lost.csv"};
+  if (!sim_.resolved_yaml.empty()) out.push_back("scene.resolved.yaml");
+  if (sim_.output.distribution_svg) out.push_back("distribution.svg");
+  if (sim_.output.field && sim_.electrostatics) out.insert(out.end(), {"field.csv", "field.svg"});
+  const std::vector<std::string> observed = observers_.files();
+  out.insert(out.end(), observed.begin(), observed.end());
+  return out;
+}
+
+// Every output of a run that ended, complete or not; a complete run's move
+// into the output folder (OutputFolder).
 void Runner::write_outputs() {
   const auto t0 = Clock::now();
   output::RunRecord r = record();
-  const collect::Collection& c = *world_.collection();
-  output::write_file_atomic(dir_ / "bins.csv", output::bins_csv(sim_, c, r.materials));
-  output::write_file_atomic(dir_ / "products.csv",
-                            output::products_csv(sim_, r.products, r.materials));
-  output::write_file_atomic(dir_ / "crossings.csv", output::crossings_csv(sim_, c));
-  output::write_file_atomic(dir_ / "lost.csv", output::lost_csv(sim_, c));
-  if (sim_.output.distribution_svg)
-    output::write_file_atomic(dir_ / "distribution.svg",
-                              output::distribution_svg(sim_, c, r.materials));
-  observers_.commit();
+  try {
+    const collect::Collection& c = *world_.collection();
+    output::write_file_atomic(dir_ / "bins.csv", output::bins_csv(sim_, c, r.materials));
+    output::write_file_atomic(dir_ / "products.csv",
+                              output::products_csv(sim_, r.products, r.materials));
+    output::write_file_atomic(dir_ / "crossings.csv", output::crossings_csv(sim_, c));
+    output::write_file_atomic(dir_ / "lost.csv", output::lost_csv(sim_, c));
+    if (sim_.output.distribution_svg)
+      output::write_file_atomic(dir_ / "distribution.svg",
+                                output::distribution_svg(sim_, c, r.materials));
+    observers_.close();
+  } catch (const std::exception& e) {
+    complete_ = r.complete = false;
+    reason_ = r.reason = std::string("cannot write the outputs: ") + e.what();
+  }
   r.solver.seconds[Stage::Output] += seconds_since(t0);
   r.wall = seconds_since(start_);
   output::add_warnings(r);
-  // Last, so "complete" is only on disk once everything else is.
-  output::write_file_atomic(dir_ / "summary.json", output::summary_json(r));
+  write_summary(r);
+  if (complete_) {
+    try {
+      folder_.publish(r.files);
+      r.out_dir = folder_.dir().string();
+    } catch (const std::exception& e) {
+      complete_ = false;
+      reason_ = e.what();
+    }
+  }
   if (!options_.quiet) output::print_report(r, stdout);
+}
+
+// summary.json, last: "complete" is on disk only once everything else is.
+// On a full disk the new file cannot be made; the old one is then
+// overwritten where it lies (its blocks are freed first), so it still says
+// why the run stopped.
+void Runner::write_summary(const output::RunRecord& r) {
+  const std::string text = output::summary_json(r);
+  try {
+    output::write_file_atomic(dir_ / "summary.json", text);
+  } catch (const output::IoError& e) {
+    std::FILE* f = std::fopen((dir_ / "summary.json").c_str(), "w");
+    const bool written = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
+    if (f) std::fclose(f);
+    if (!written)
+      std::fprintf(stderr, "ces-sim: cannot write %s: %s\n", (dir_ / "summary.json").c_str(),
+                   e.what());
+  }
 }
 
 output::RunRecord Runner::record() const {
@@ -260,11 +359,14 @@ output::RunRecord Runner::record() const {
   r.sim = &sim_;
   r.collection = world_.collection();
   r.out_dir = dir_.string();
+  r.files = files();
   r.complete = complete_;
   r.reason = complete_ ? std::string() : reason_;
   r.steps = world_.step_count();
   r.time = world_.time();
-  r.threads = sim_.model->threads > 0 ? sim_.model->threads : omp_get_max_threads();
+  r.threads = threads_.max_threads();
+  r.threads_adaptive = threads_.adaptive();
+  r.steps_at_threads = threads_.steps_at();
   r.wall = seconds_since(start_);
   r.solver = observers_.solver();
   // The steps' own, complete only once each step returned, and the writing
@@ -302,7 +404,19 @@ void Runner::tally_active(output::RunRecord& r) const {
 }  // namespace
 
 RunResult run(const Simulation& sim, const RunOptions& options) {
-  Runner runner(sim, options);
+  Runner runner(sim, options, nullptr);
+  return runner.run();
+}
+
+Checkpoint find_checkpoint(const std::string& dir) { return read_checkpoint(checkpoint_file(dir)); }
+
+RunResult resume(const Simulation& sim, const Checkpoint& checkpoint, const std::string& dir,
+                 RunOptions options) {
+  if (sim.scene_hash != checkpoint.scene_hash)
+    throw CorruptData("the scene rebuilt from the checkpoint in " + dir +
+                      " differs from the one that wrote it");
+  options.out_dir = dir;
+  Runner runner(sim, options, &checkpoint.body);
   return runner.run();
 }
 

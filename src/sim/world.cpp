@@ -92,6 +92,20 @@ const StepStats& World::step(StepObserver* observer) {
   return stats_;
 }
 
+void World::save(ByteWriter& out) const {
+  ces::save(out, state_);
+  for (const feed::Feeder& f : feeders_) f.save(out);
+  if (collection_) collection_->save(out);
+}
+
+void World::load(ByteReader& in) {
+  ces::load(in, state_);
+  if (state_.bodies.pose.size() != model_->bodies.size())
+    throw CorruptData("the machine's bodies have changed");
+  for (feed::Feeder& f : feeders_) f.load(in);
+  if (collection_) collection_->load(in);
+}
+
 void World::feed() {
   for (feed::Feeder& f : feeders_) f.feed(state_);
 }

@@ -96,6 +96,12 @@ class World {
 
   const StepStats& step(StepObserver* observer = nullptr);
 
+  // Everything that carries from one step to the next: the state, the
+  // feeds' streams and tallies, the collectors' records. A world built from
+  // the same scene and loaded steps on to the same bits as the one saved.
+  void save(ByteWriter& out) const;
+  void load(ByteReader& in);
+
  private:
   void feed();
   void broadphase();

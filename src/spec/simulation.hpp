@@ -38,6 +38,7 @@ struct OutputSettings {
   bool steps_csv = true;
   bool distribution_svg = true;
   std::optional<FieldPicture> field;  // needs Simulation::electrostatics
+  double checkpoint_every = 0.0;      // s of simulated time; 0 = no checkpoints
 };
 
 // An electrode as the scene names it, for pictures and reports (the field

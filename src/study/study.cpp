@@ -120,6 +120,74 @@ bool run_cases(const Options& o, const std::vector<Case>& cases) {
   return ok;
 }
 
+// The study command's own arguments (after "study"), but for --case,
+// --jobs and --scheduler: what every case command and the final measuring
+// command share.
+std::vector<std::string> study_arguments(const Options& o) {
+  std::vector<std::string> args{fs::absolute(o.scene).string()};
+  for (const Axis& a : o.axes) {
+    std::string values;
+    for (const std::string& v : a.values) values += (values.empty() ? "" : ",") + v;
+    args.insert(args.end(), {"--vary", a.key + "=" + values});
+  }
+  for (const auto& [k, v] : o.base_sets) args.insert(args.end(), {"--set", k + "=" + v});
+  if (o.seed) args.insert(args.end(), {"--seed", std::to_string(*o.seed)});
+  if (o.threads) args.insert(args.end(), {"--threads", std::to_string(*o.threads)});
+  if (!o.reference.empty()) args.insert(args.end(), {"--reference", fs::absolute(o.reference).string()});
+  args.insert(args.end(), {"-o", fs::absolute(o.out_dir).string()});
+  return args;
+}
+
+// Single quotes, with any single quote in the text closed and escaped.
+std::string shell_quoted(const std::string& s) {
+  std::string out = "'";
+  for (const char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+std::string this_binary(const Options& o) {
+  std::error_code error;
+  const fs::path real = fs::read_symlink(o.binary, error);
+  return error ? o.binary : real.string();
+}
+
+// This binary's study command, quoted for a shell, without --case.
+std::string study_command(const Options& o) {
+  std::string command = shell_quoted(this_binary(o)) + " study";
+  for (const std::string& a : study_arguments(o)) command.append(" ").append(shell_quoted(a));
+  return command;
+}
+
+constexpr const char* kCommands = "cases.sh";  // one command per case (case_commands)
+
+// GNU parallel runs the case commands, `jobs` at a time; false if it is
+// missing or a case failed.
+bool run_with_parallel(const Options& o) {
+  fs::create_directories(o.out_dir);
+  output::write_file_atomic(o.out_dir / kCommands, case_commands(o));
+  const int jobs = o.jobs > 0 ? o.jobs : cores();
+  const std::string command = "parallel --will-cite --jobs " + std::to_string(jobs) +
+                              " --halt never < " + shell_quoted((o.out_dir / kCommands).string());
+  if (std::system("command -v parallel > /dev/null 2>&1") != 0)
+    throw std::invalid_argument(
+        "--scheduler parallel: GNU parallel is not installed (Debian: apt-get install parallel)");
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+int write_slurm(const Options& o) {
+  fs::create_directories(o.out_dir);
+  output::write_file_atomic(o.out_dir / kCommands, case_commands(o));
+  const fs::path script = o.out_dir / "study.sbatch";
+  output::write_file_atomic(script, slurm_script(o));
+  const std::string measure = study_command(o);
+  std::printf("wrote %s (%zu array tasks, one per case)\nsubmit, then measure when the array is done:\n"
+              "  jid=$(sbatch --parsable %s)\n"
+              "  sbatch --dependency=afterok:$jid --wrap \"%s\"\n",
+              script.c_str(), make_cases(o.axes).size(), script.c_str(), measure.c_str());
+  return 0;
+}
+
 double max_abs_difference(const output::Table& a, const output::Table& b, const fs::path& file,
                           const std::string& column) {
   const std::size_t ca = a.column(column, file), cb = b.column(column, file);
@@ -404,6 +472,37 @@ std::string study_table(const std::vector<Axis>& axes, const std::vector<Row>& r
   return out;
 }
 
+Scheduler parse_scheduler(const std::string& name) {
+  if (name == "local") return Scheduler::Local;
+  if (name == "parallel") return Scheduler::Parallel;
+  if (name == "slurm") return Scheduler::Slurm;
+  throw std::invalid_argument("--scheduler " + name + ": expected local, parallel or slurm");
+}
+
+std::string case_commands(const Options& o) {
+  std::string text;
+  const std::string command = study_command(o);
+  for (const Case& c : make_cases(o.axes))
+    text.append(command).append(" --case ").append(std::to_string(c.index)).append("\n");
+  return text;
+}
+
+std::string slurm_script(const Options& o) {
+  const std::size_t n = make_cases(o.axes).size();
+  const fs::path commands = fs::absolute(o.out_dir / kCommands);
+  return "#!/bin/bash\n"
+         "# ces-sim study: one array task per case. Submit with sbatch; when the array\n"
+         "# has run, the same study command without --scheduler measures the cases.\n"
+         "#SBATCH --job-name=ces-study\n"
+         "#SBATCH --array=0-" + std::to_string(n - 1) + "\n"
+         "#SBATCH --ntasks=1\n"
+         "#SBATCH --output=" + fs::absolute(o.out_dir).string() + "/slurm-%A_%a.out\n"
+         "set -euo pipefail\n"
+         "line=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" " + shell_quoted(commands.string()) +
+         ")\n"
+         "bash -c \"$line\"\n";
+}
+
 std::string list_cases(const Options& o) {
   std::string text;
   for (const Case& c : make_cases(o.axes)) {
@@ -415,6 +514,8 @@ std::string list_cases(const Options& o) {
 }
 
 int run(const Options& o) {
+  if (o.scheduler == Scheduler::Slurm) return write_slurm(o);
+  if (o.scheduler == Scheduler::Parallel && !o.only_case && !run_with_parallel(o)) return 3;
   const std::vector<Case> cases = make_cases(o.axes);
   if (o.only_case) {
     if (*o.only_case >= cases.size())

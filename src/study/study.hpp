@@ -45,8 +45,16 @@ struct Case {
 // Every combination; the last axis varies fastest.
 std::vector<Case> make_cases(const std::vector<Axis>& axes);
 
+// Who runs the cases: this process (fork/exec, `jobs` at a time), GNU
+// parallel (`jobs` at a time, then this process measures), or a Slurm job
+// array (a script written into the study folder; measuring is the same
+// command without --scheduler, once the array has run).
+enum class Scheduler { Local, Parallel, Slurm };
+Scheduler parse_scheduler(const std::string& name);  // throws std::invalid_argument
+
 struct Options {
   std::string scene;
+  Scheduler scheduler = Scheduler::Local;
   std::vector<Axis> axes;
   Sets base_sets;                      // the user's own --set, applied first
   std::optional<std::uint64_t> seed;
@@ -93,6 +101,11 @@ std::string study_table(const std::vector<Axis>& axes, const std::vector<Row>& r
 
 // One line per case: "K  --set a=1 --set b=2".
 std::string list_cases(const Options& o);
+// One shell command per case, in case order: this binary's study command
+// with --case K (which runs the case and marks it done).
+std::string case_commands(const Options& o);
+// The Slurm job array that runs case_commands(), one task per case.
+std::string slurm_script(const Options& o);
 // Runs the study (or only its case o.only_case); returns a process exit code:
 // 0 all cases complete, 3 some case failed.
 int run(const Options& o);

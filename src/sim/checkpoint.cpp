@@ -1,0 +1,51 @@
+#include "sim/checkpoint.hpp"
+
+#include <fstream>
+#include <iterator>
+
+#include "common/serial.hpp"
+#include "output/files.hpp"
+
+namespace ces {
+namespace {
+
+// The head's first bytes, with the format's version: a checkpoint from
+// another version of the format is refused, never misread.
+constexpr std::string_view kMagic = "ces-sim checkpoint 1\n";
+
+}  // namespace
+
+std::filesystem::path checkpoint_file(const std::filesystem::path& dir) {
+  return dir / "partial" / "checkpoint.bin";
+}
+
+void write_checkpoint(const std::filesystem::path& file, const Checkpoint& c) {
+  ByteWriter out;
+  out.text(kMagic);
+  out.text(c.scene_path);
+  out.text(c.scene_hash);
+  out.text(c.resolved_yaml);
+  out.text(c.body);
+  output::write_file_atomic(file, out.bytes());
+}
+
+Checkpoint read_checkpoint(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw output::IoError("no checkpoint at " + file.string());
+  const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  ByteReader r(bytes);
+  Checkpoint c;
+  try {
+    if (r.text() != kMagic) throw CorruptData("not a checkpoint of this version of ces-sim");
+    c.scene_path = r.text();
+    c.scene_hash = r.text();
+    c.resolved_yaml = r.text();
+    c.body = r.text();
+    if (!r.at_end()) throw CorruptData("bytes after its end");
+  } catch (const CorruptData& e) {
+    throw CorruptData(file.string() + ": " + e.what());
+  }
+  return c;
+}
+
+}  // namespace ces

@@ -1,0 +1,85 @@
+#include "sim/output_folder.hpp"
+
+#include <algorithm>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+namespace ces {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A listed name a run may have written: relative, and inside the folder.
+bool safe_relative(const std::string& name) {
+  const fs::path p(name);
+  if (name.empty() || p.is_absolute()) return false;
+  return std::none_of(p.begin(), p.end(), [](const fs::path& part) { return part == ".."; });
+}
+
+// What an unfinished run may have left in its work folder: the files its
+// summary lists, the checkpoint, and the names every run writes as it goes.
+void clear_work(const fs::path& work) {
+  std::vector<std::string> names = listed_files(work / "summary.json");
+  for (const char* name : {"summary.json", "checkpoint.bin", "checkpoint.bin.tmp",
+                           "scene.resolved.yaml", "steps.csv", "trajectories.csv",
+                           "trajectories.pvd", "field.csv", "field.svg"})
+    names.emplace_back(name);
+  for (const std::string& name : names) {
+    if (!safe_relative(name)) continue;
+    fs::remove(work / name);
+    fs::remove(work / (name + ".tmp"));
+  }
+  if (fs::is_directory(work / "trajectories"))
+    for (const fs::directory_entry& e : fs::directory_iterator(work / "trajectories"))
+      if (e.path().extension() == ".vtp" && e.path().stem().string().starts_with("frame_"))
+        fs::remove(e.path());
+  std::error_code not_empty;  // a folder with someone else's files stays
+  fs::remove(work / "trajectories", not_empty);
+  fs::remove(work, not_empty);
+}
+
+void io(const std::string& what, const fs::path& path, const fs::filesystem_error& e) {
+  throw output::IoError("cannot " + what + " " + path.string() + ": " + e.code().message());
+}
+
+}  // namespace
+
+std::vector<std::string> listed_files(const fs::path& summary_json) {
+  std::ifstream in(summary_json);
+  if (!in) return {};
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  std::vector<std::string> files;
+  if (j.is_discarded() || !j.contains("files") || !j["files"].is_array()) return files;
+  for (const nlohmann::json& f : j["files"])
+    if (f.is_string() && safe_relative(f.get<std::string>())) files.push_back(f.get<std::string>());
+  return files;
+}
+
+OutputFolder::OutputFolder(fs::path dir, output::Start start)
+    : dir_(std::move(dir)), work_(dir_ / "partial") {
+  try {
+    if (start == output::Start::Fresh && fs::exists(work_)) clear_work(work_);
+    fs::create_directories(work_);
+  } catch (const fs::filesystem_error& e) {
+    io("prepare the output folder", dir_, e);
+  }
+}
+
+void OutputFolder::publish(const std::vector<std::string>& files) const {
+  const std::vector<std::string> earlier = listed_files(dir_ / "summary.json");
+  try {
+    for (const std::string& f : files) {
+      if (f == "summary.json") continue;
+      fs::create_directories((dir_ / f).parent_path());
+      fs::rename(work_ / f, dir_ / f);
+    }
+    for (const std::string& f : earlier)
+      if (std::find(files.begin(), files.end(), f) == files.end()) fs::remove(dir_ / f);
+    fs::rename(work_ / "summary.json", dir_ / "summary.json");
+    clear_work(work_);
+  } catch (const fs::filesystem_error& e) {
+    io("move the results into", dir_, e);
+  }
+}
+
+}  // namespace ces

@@ -1,0 +1,43 @@
+// Where a run writes, so that no run loses another's results.
+//
+// A run writes into DIR/partial while it runs. When it completes, its files
+// move into DIR one by one (summary.json last, so "complete" is on disk only
+// once everything else is), and the files an earlier run listed in DIR's
+// summary.json that this run did not write again are removed: nothing else
+// in DIR is touched (a user's own files stay). A run that stops early (a
+// signal, an error, a full disk, a kill) leaves DIR as it was, with an
+// earlier complete run intact, and its own files in DIR/partial, where
+// summary.json says why it stopped and `ces-sim resume DIR` finds its
+// checkpoint.
+#pragma once
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "output/files.hpp"
+
+namespace ces {
+
+class OutputFolder {
+ public:
+  // Fresh: removes what an earlier unfinished run left in DIR/partial.
+  // Resume: keeps it, to continue.
+  OutputFolder(std::filesystem::path dir, output::Start start);
+
+  const std::filesystem::path& dir() const { return dir_; }
+  // Where the run writes while it runs.
+  const std::filesystem::path& work() const { return work_; }
+
+  // Moves `files` (paths relative to work(); summary.json among them) into
+  // dir(), removes the earlier run's files not among them, and removes
+  // work().
+  void publish(const std::vector<std::string>& files) const;
+
+ private:
+  std::filesystem::path dir_, work_;
+};
+
+// The files a run's summary.json lists (relative paths), or none.
+std::vector<std::string> listed_files(const std::filesystem::path& summary_json);
+
+}  // namespace ces

@@ -1,0 +1,163 @@
+// Runs that survive: a run killed with SIGKILL at a random moment and
+// resumed from its checkpoint writes the bytes the uninterrupted run writes;
+// a run that does not finish never touches an earlier complete run; a run
+// that completes removes only the files the earlier run wrote.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <fstream>
+#include <csignal>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <thread>
+#include <vector>
+
+#include "support.hpp"
+
+namespace ces {
+namespace {
+
+using test::ces_sim;
+using test::fresh_dir;
+using test::Outcome;
+using test::read_text;
+namespace fs = std::filesystem;
+
+const std::string kBinary = CES_SIM_BINARY;
+const std::string kTiny = std::string(CES_TEST_DIR) + "/scenes/tiny.yaml";
+
+// tiny.yaml fed for 2 s and run to 2.5 s (a few seconds of wall time), with
+// a checkpoint every 0.1 s and frames every 50 ms as VTK and CSV.
+const std::vector<std::string> kLongerRun = {
+    "--set", "time.end=2.5 s", "--set", "feeds.hopper.duration=2 s", "--set",
+    "output.checkpoint.every=0.1 s", "--quiet"};
+
+pid_t start_run(const fs::path& dir) {
+  const pid_t pid = ::fork();
+  if (pid != 0) return pid;
+  std::vector<std::string> args = {kBinary, kTiny, "-o", dir.string()};
+  args.insert(args.end(), kLongerRun.begin(), kLongerRun.end());
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  ::execv(kBinary.c_str(), argv.data());
+  ::_exit(127);
+}
+
+void wait_for(const fs::path& file) {
+  for (int i = 0; i < 6000 && !fs::exists(file); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  ASSERT_TRUE(fs::exists(file)) << file;
+}
+
+// Kills the run `delay` after its first checkpoint; false if it ended first.
+bool kill_after_first_checkpoint(const fs::path& dir, std::chrono::milliseconds delay) {
+  const pid_t pid = start_run(dir);
+  wait_for(dir / "partial" / "checkpoint.bin");
+  std::this_thread::sleep_for(delay);
+  ::kill(pid, SIGKILL);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
+}
+
+std::string run_args(const fs::path& dir) {
+  std::string args = kTiny + " -o " + dir.string();
+  for (const std::string& a : kLongerRun) args += " " + (a.find(' ') != std::string::npos ? "'" + a + "'" : a);
+  return args;
+}
+
+// The files a run's results consist of (not steps.csv's wall times or the
+// summary's).
+const char* const kResults[] = {"bins.csv",         "products.csv",     "crossings.csv",
+                                "lost.csv",         "trajectories.csv", "trajectories.pvd",
+                                "scene.resolved.yaml"};
+
+TEST(Restart, KilledAtARandomMomentResumesToTheSameBytes) {
+  const fs::path whole = fresh_dir("whole"), killed = fresh_dir("killed");
+  const Outcome ref = ces_sim(run_args(whole));
+  ASSERT_EQ(ref.code, 0) << ref.err;
+  std::random_device entropy;
+  const unsigned seed = entropy();
+  std::mt19937 rng(seed);
+  const auto delay = std::chrono::milliseconds(std::uniform_int_distribution<int>(0, 600)(rng));
+  SCOPED_TRACE("kill " + std::to_string(delay.count()) + " ms after the first checkpoint (seed " +
+               std::to_string(seed) + ")");
+  ASSERT_TRUE(kill_after_first_checkpoint(killed, delay)) << "the run ended before the kill";
+  EXPECT_FALSE(fs::exists(killed / "bins.csv")) << "an unfinished run publishes nothing";
+  const nlohmann::json partial = nlohmann::json::parse(read_text(killed / "partial" / "summary.json"));
+  EXPECT_FALSE(partial["complete"].get<bool>());
+  EXPECT_NE(partial["reason"].get<std::string>().find("killed"), std::string::npos);
+
+  const Outcome resumed = ces_sim("resume " + killed.string() + " --quiet");
+  ASSERT_EQ(resumed.code, 0) << resumed.err;
+  for (const char* name : kResults)
+    EXPECT_EQ(read_text(whole / name), read_text(killed / name)) << name;
+  std::size_t frames = 0;
+  for (const fs::directory_entry& e : fs::directory_iterator(whole / "trajectories")) {
+    ++frames;
+    const fs::path name = e.path().filename();
+    EXPECT_EQ(read_text(e.path()), read_text(killed / "trajectories" / name)) << name;
+  }
+  EXPECT_GE(frames, 40u);
+  EXPECT_FALSE(fs::exists(killed / "partial"));
+}
+
+TEST(Restart, AnUnfinishedRunLeavesTheEarlierCompleteRunIntact) {
+  const fs::path dir = fresh_dir("earlier");
+  ASSERT_EQ(ces_sim(kTiny + " -o " + dir.string() + " --quiet").code, 0);
+  const std::string bins = read_text(dir / "bins.csv"), summary = read_text(dir / "summary.json");
+  fs::create_directories(dir / "trajectories");
+  std::ofstream(dir / "trajectories" / "frame_custom.vtp") << "mine";
+  ASSERT_TRUE(kill_after_first_checkpoint(dir, std::chrono::milliseconds(50)));
+  EXPECT_EQ(read_text(dir / "bins.csv"), bins);
+  EXPECT_EQ(read_text(dir / "summary.json"), summary);
+  EXPECT_EQ(read_text(dir / "trajectories" / "frame_custom.vtp"), "mine");
+  EXPECT_TRUE(fs::exists(dir / "trajectories" / "frame_000000.vtp"));
+}
+
+// The earlier run wrote frames; the new one writes none: its frames go, a
+// user's file beside them stays, and so does a file the earlier run never
+// listed.
+TEST(Restart, ACompleteRunRemovesOnlyTheEarlierRunsFiles) {
+  const fs::path dir = fresh_dir("replaced");
+  ASSERT_EQ(ces_sim(kTiny + " -o " + dir.string() + " --quiet").code, 0);
+  ASSERT_TRUE(fs::exists(dir / "trajectories" / "frame_000001.vtp"));
+  std::ofstream(dir / "trajectories" / "frame_custom.vtp") << "mine";
+  std::ofstream(dir / "notes.txt") << "mine";
+  std::string plain = read_text(kTiny);
+  const std::string frames = "trajectories: {every: 50 ms, format: both}";
+  ASSERT_NE(plain.find(frames), std::string::npos);
+  plain.replace(plain.find(frames), frames.size(), "steps: true");
+  const fs::path scene = fresh_dir("plain") / "tiny_plain.yaml";
+  std::ofstream(scene) << plain;
+  const Outcome o = ces_sim(scene.string() + " -o " + dir.string() + " --quiet");
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_FALSE(fs::exists(dir / "trajectories" / "frame_000001.vtp"));
+  EXPECT_FALSE(fs::exists(dir / "trajectories.pvd"));
+  EXPECT_FALSE(fs::exists(dir / "trajectories.csv"));
+  EXPECT_EQ(read_text(dir / "trajectories" / "frame_custom.vtp"), "mine");
+  EXPECT_EQ(read_text(dir / "notes.txt"), "mine");
+  EXPECT_TRUE(fs::exists(dir / "bins.csv"));
+  EXPECT_FALSE(fs::exists(dir / "partial"));
+}
+
+TEST(Restart, ResumeRefusesAMissingOrDamagedCheckpoint) {
+  const fs::path none = fresh_dir("none");
+  const Outcome missing = ces_sim("resume " + none.string());
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_NE(missing.err.find("no checkpoint"), std::string::npos) << missing.err;
+
+  const fs::path dir = fresh_dir("damaged");
+  ASSERT_TRUE(kill_after_first_checkpoint(dir, std::chrono::milliseconds(0)));
+  const fs::path file = dir / "partial" / "checkpoint.bin";
+  fs::resize_file(file, fs::file_size(file) / 2);
+  const Outcome damaged = ces_sim("resume " + dir.string());
+  EXPECT_EQ(damaged.code, 2);
+  EXPECT_NE(damaged.err.find("cannot resume"), std::string::npos) << damaged.err;
+}
+
+}  // namespace
+}  // namespace ces
