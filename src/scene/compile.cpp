@@ -1074,7 +1074,8 @@ class Compiler {
         {"domain", sim_.domain.has_value()},
         {"drag", sim_.drag.has_value()},
         {"electrostatics", sim_.electrostatics.has_value()},
-        {"corona_charging", sim_.electrostatics && !sim_.electrostatics->corona.empty()},
+        {"corona_charging", sim_.electrostatics && (!sim_.electrostatics->corona.empty() ||
+                                                    !sim_.electrostatics->bands.empty())},
         {"brush", sim_.electrostatics && sim_.electrostatics->brush_body.has_value()},
         {"trajectories", sim_.output.trajectories.every > 0.0},
     };
