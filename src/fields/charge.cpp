@@ -69,9 +69,10 @@ namespace {
 
 // The axisymmetric Laplace solve of a flake (radius a, thickness t = x a)
 // lying on a grounded plane in a uniform normal field E far above it
-// (tests/flake_laplace_test.cpp, which recomputes these rows on a coarser
-// grid and asserts them to 1 %; cells down to a/500 at the rim and the
-// faces, domain 30 a; grid-converged to 0.1 %). Per row, x and:
+// (cells down to a/500 at the rim and the faces, domain 30 a;
+// grid-converged to 0.1 %; tests/flake_laplace_test.cpp recomputes both
+// charge columns at x = 0.1, 0.4 and 1 on a coarser grid and asserts them
+// to 4 %, the pull columns are not recomputed there). Per row, x and:
 //  - insulator at Pauthenier saturation (zero normal field on the air side
 //    of its top and rim, so no field line ends there): the charge over the
 //    thin-plate Q_s; the pull over its thin-plate limit εr² ε0 E² a⁴/(π t²),
