@@ -262,7 +262,9 @@ TEST(SeparatorScene, FieldCsvIsTheFieldModel) {
     EXPECT_NEAR(std::stod(r[5]), model.potential(p), 1e-8 * 35000);
   }
   EXPECT_NEAR(phi_max, 0.0, 1e-6);  // in the drum (0 there; a rounding above just outside)
-  EXPECT_NEAR(phi_min, -35000.0, 1e-3);
+  // Down to the electrodes' potential; the line charges overshoot it by a
+  // few kV just outside the thin wire (docs/physics.md §3.2).
+  EXPECT_LE(phi_min, -35000.0 + 1e-3);
   const std::string svg = read_text(dir / "field.svg");
   EXPECT_TRUE(svg.starts_with("<?xml"));
   EXPECT_NE(svg.find("|E| (kV/cm)"), std::string::npos);
@@ -398,7 +400,10 @@ Share short_share(const std::vector<double>& x, double gap) {
 }
 
 // The seed's Figure 10 over three feed rates: the copper landing spreads
-// wider as the feed rate grows. The feed-rate scenes drop the mix at rest
+// wider as the feed rate grows. At the seed's roll speed, 44.8 rpm, that
+// of its figure (the reference machine turns at 70 rpm, where copper
+// grains leave the roll 29 deg past the top and the low tail is wide at
+// every feed rate: 30, 10 and 13 % short at 5, 40 and 160 g/s). The feed-rate scenes drop the mix at rest
 // from a feeder's lip at the top of the drum, which must accelerate it by
 // friction; particles lying on others (friction 0.2 instead of the drum's
 // 0.5) leave the drum slower and land short, so the copper landing grows a
@@ -439,7 +444,9 @@ TEST(SeparatorScene, CopperLandingWidensWithFeedRate) {
   std::vector<double> spread, spread_error;
   for (const char* rate : {"5", "40", "160"}) {
     SCOPED_TRACE(std::string(rate) + " g/s");
-    const Simulation sim = load(kScenes + "ces_feedrate/feed_" + rate + "gps.yaml");
+    const Simulation sim = load(kScenes + "ces_feedrate/feed_" + rate + "gps.yaml",
+                                {{"bodies.drum.motion.rotation.speed", "44.8 rpm"},
+                                 {"bodies.brush.motion.rotation.speed", "44.8 rpm"}});
     const fs::path dir = run_scene(sim, std::string("feed_") + rate);
     const auto summary = nlohmann::json::parse(read_text(dir / "summary.json"));
     EXPECT_TRUE(summary["balance"]["exact"].get<bool>());

@@ -882,6 +882,7 @@ std::vector<double> charged_drum_state(int threads) {
   zone.angle_begin = 80.0 * kDeg;
   zone.angle_end = 95.0 * kDeg;
   zone.depth = 0.02;
+  zone.current_density = 1e-4;  // A/m², any: the test is of the threads
   spec.corona = {zone};
   w.set_electrostatics(spec);
   w.set_drag({Air{}, DragLaw::SchillerNaumann});
