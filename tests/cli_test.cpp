@@ -487,4 +487,76 @@ TEST(Cli, SigtermStopsTheRunKeepsItsOutputsAsideAndExitsThree) {
   EXPECT_FALSE(fs::exists(dir / "summary.json")) << "an unfinished run publishes nothing";
 }
 
+// time.until: collected: the tiny chute's feed stops at 0.1 s and the run
+// ends at the first step with every particle collected or lost, well
+// before its 2 s cap; then fed = collected + lost exactly, none active.
+TEST(Cli, UntilCollectedEndsWhenTheFeedIsAccountedFor) {
+  const fs::path dir = fresh_dir("until_collected");
+  const Outcome o = ces_sim(scene("tiny.yaml") + " -o " + dir.string() +
+                            " --quiet --set time.until=collected --set time.end=2s");
+  ASSERT_EQ(o.code, 0) << o.err;
+  const nlohmann::json s = nlohmann::json::parse(read_text(dir / "summary.json"));
+  EXPECT_TRUE(s["complete"].get<bool>());
+  const nlohmann::json& b = s["balance"];
+  EXPECT_TRUE(b["exact"].get<bool>());
+  const auto count = [&](const char* k) { return b[k]["count"].get<std::uint64_t>(); };
+  EXPECT_GT(count("fed"), 20u);
+  EXPECT_EQ(count("active"), 0u);
+  EXPECT_EQ(count("fed"), count("collected") + count("lost"));
+  const double end = s["simulated_time_s"].get<double>();
+  EXPECT_GT(end, 0.1);
+  EXPECT_LT(end, 1.0);
+  // The step before the last still had a particle or a feed running: a run
+  // of one step less than this one's is cut by its cap.
+  const fs::path cut = fresh_dir("until_collected_cut");
+  const Outcome c = ces_sim(scene("tiny.yaml") + " -o " + cut.string() +
+                            " --quiet --set time.until=collected --set time.end=" +
+                            std::to_string(end - 1e-3) + "s");
+  EXPECT_EQ(c.code, 3) << c.err;
+}
+
+// The cap comes first: exit 3, the outputs kept aside, and a message at
+// where time.end was given (here the second --set) naming what is still
+// active and what was expected.
+TEST(Cli, UntilCollectedCapFailsTheRunNamingWhatIsLeft) {
+  const fs::path dir = fresh_dir("until_collected_cap");
+  const Outcome o = ces_sim(scene("tiny.yaml") + " -o " + dir.string() +
+                            " --quiet --set time.until=collected --set time.end=0.15s");
+  ASSERT_EQ(o.code, 3) << o.err;
+  const nlohmann::json s = nlohmann::json::parse(read_text(dir / "partial" / "summary.json"));
+  EXPECT_FALSE(s["complete"].get<bool>());
+  const std::string reason = s["reason"];
+  EXPECT_EQ(reason.rfind("--set:2:1: time.end: ", 0), 0u) << reason;
+  EXPECT_NE(reason.find("still active"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("expected every particle collected or lost"), std::string::npos) << reason;
+  const std::uint64_t active = s["balance"]["active"]["count"];
+  EXPECT_NE(reason.find(std::to_string(active) + " particles"), std::string::npos) << reason;
+  EXPECT_NE(o.err.find("still active"), std::string::npos) << o.err;
+  // Given in the scene file: its file, line and column.
+  std::string text = read_text(kScenes / "tiny.yaml");
+  const std::string time = "time: {step: 1 ms, end: 0.4 s}";
+  text.replace(text.find(time), time.size(), "time: {step: 1 ms, end: 0.15 s, until: collected}");
+  const fs::path file = dir / "capped.yaml";
+  std::ofstream(file) << text;
+  const Outcome f = ces_sim(file.string() + " -o " + (dir / "file").string() + " --quiet");
+  EXPECT_EQ(f.code, 3);
+  EXPECT_NE(f.err.find("capped.yaml:7:25: time.end: the run reached its end of 0.15 s with "),
+            std::string::npos)
+      << f.err;
+}
+
+// A feed without a duration never stops: refused with its line.
+TEST(Cli, UntilCollectedNeedsFeedsThatStop) {
+  const fs::path dir = fresh_dir("until_collected_endless");
+  std::string text = read_text(kScenes / "tiny.yaml");
+  text.replace(text.find("    duration: 0.1 s\n"), std::string("    duration: 0.1 s\n").size(), "");
+  const fs::path file = dir / "endless.yaml";
+  std::ofstream(file) << text;
+  const Outcome o = ces_sim(file.string() + " -o " + (dir / "out").string() +
+                            " --quiet --set time.until=collected");
+  EXPECT_EQ(o.code, 2);
+  EXPECT_NE(o.err.find("endless.yaml:"), std::string::npos) << o.err;
+  EXPECT_NE(o.err.find("has no duration"), std::string::npos) << o.err;
+}
+
 }  // namespace

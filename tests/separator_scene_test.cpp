@@ -20,6 +20,7 @@
 
 #include "feed/shapes.hpp"
 #include "fields/charge.hpp"
+#include "fields/corona.hpp"
 #include "scene/scene.hpp"
 #include "sim/run.hpp"
 #include "support.hpp"
@@ -76,26 +77,30 @@ TEST(SeparatorScene, ReferenceMachineCompiles) {
   const Simulation sim = load(kScenes + "ces_pcb.yaml");
   ASSERT_TRUE(sim.electrostatics);
   const fields::ElectrostaticsSpec& es = *sim.electrostatics;
-  EXPECT_TRUE(std::holds_alternative<fields::BipolarField>(es.field));
+  EXPECT_TRUE(std::holds_alternative<fields::LineChargeField>(es.field));
   EXPECT_EQ(es.drum.radius, 0.16);
   EXPECT_EQ(es.drum.half_width, 0.15);
   EXPECT_EQ(sim.model->bodies[std::size_t(es.drum_body)].name, "drum");
   ASSERT_TRUE(es.brush_body);
   EXPECT_EQ(sim.model->bodies[std::size_t(*es.brush_body)].name, "brush");
-  ASSERT_EQ(sim.electrodes.size(), 1u);
+  ASSERT_EQ(sim.electrodes.size(), 2u);
   const fields::Electrode& e = sim.electrodes[0].electrode;
   EXPECT_NEAR(e.centre.x(), 0.267 * std::cos(30 * kDeg), 1e-15);
   EXPECT_NEAR(e.centre.y(), 0.267 * std::sin(30 * kDeg), 1e-15);
   EXPECT_EQ(e.radius, 0.019);
   EXPECT_EQ(e.potential, -35000.0);
-  ASSERT_EQ(es.corona.size(), 1u);
-  const fields::CoronaZone& z = es.corona[0];
-  EXPECT_DOUBLE_EQ(z.angle_begin, 30 * kDeg);
-  EXPECT_DOUBLE_EQ(z.angle_end, 75 * kDeg);
-  EXPECT_EQ(z.depth, 0.005);
-  EXPECT_EQ(z.mode, fields::CoronaCharging::Saturation);
-  EXPECT_DOUBLE_EQ(*z.field, 4.13e5);
-  EXPECT_EQ(z.ion_sign, -1.0);
+  // The corona wire: no hand-set sector, its band 50 mm under it, 15 deg
+  // past the top, at Peek's onset for a 0.1 mm wire (docs/physics.md §4).
+  EXPECT_TRUE(es.corona.empty());
+  ASSERT_EQ(es.bands.size(), 1u);
+  const fields::CoronaBand& b = es.bands[0];
+  EXPECT_NEAR(b.foot_angle, 75 * kDeg, 1e-12);
+  EXPECT_NEAR(b.height, 0.0501, 1e-9);
+  EXPECT_NEAR(b.onset_field, fields::peek_onset_field(1e-4), 1e-6);
+  EXPECT_GT(b.onset_voltage, 8e3);
+  EXPECT_LT(b.onset_voltage, 20e3);
+  EXPECT_DOUBLE_EQ(b.current, fields::townsend_current(-35e3, b.onset_voltage, 1e-4, b.height, 2.1e-4));
+  EXPECT_EQ(b.ion_sign, -1.0);
   EXPECT_DOUBLE_EQ(es.medium_relative_permittivity, 1.0006);
   ASSERT_TRUE(sim.drag);
   EXPECT_EQ(sim.drag->law, fields::DragLaw::SchillerNaumann);
@@ -145,7 +150,7 @@ TEST(SeparatorScene, MetalFractionAndLineCharges) {
                                        "electrostatics:\n"
                                        "  field: {model: line_charges}\n"
                                        "  electrodes:\n"
-                                       "    - {name: wire, position: [0.1 m, 0.2 m],\n"
+                                       "    - {name: wire2, position: [0.1 m, 0.2 m],\n"
                                        "       radius: 0.1 mm, voltage: -30 kV}\n"
                                        "feeds:\n"
                                        "  - name: f\n"
@@ -156,7 +161,7 @@ TEST(SeparatorScene, MetalFractionAndLineCharges) {
   const Simulation sim = load((dir / "mixed.yaml").string());
   const auto* lines = std::get_if<fields::LineChargeField>(&sim.electrostatics->field);
   ASSERT_NE(lines, nullptr);
-  EXPECT_EQ(lines->electrodes().size(), 2u);  // the machine's electrode and the wire
+  EXPECT_EQ(lines->electrodes().size(), 3u);  // the machine's electrode and wire, and this wire
   const auto& materials = sim.model->materials.materials();
   const auto pcb = std::find_if(materials.begin(), materials.end(),
                                 [](const Material& m) { return m.name == "pcb"; });
@@ -234,13 +239,14 @@ TEST(SeparatorScene, FeedShapesFromTheScene) {
 // printed digits; phi is 0 in the drum and U in the electrode.
 TEST(SeparatorScene, FieldCsvIsTheFieldModel) {
   const Simulation sim =
-      load(kScenes + "ces_pcb.yaml", {{"feeds.nozzle.start", "1 s"}, {"time.end", "1 ms"}});
+      load(kScenes + "ces_pcb.yaml",
+           {{"feeds.nozzle.start", "1 s"}, {"time.until", "end"}, {"time.end", "1 ms"}});
   const fs::path dir = run_scene(sim, "field");
   const auto rows = read_csv(dir / "field.csv");
   ASSERT_GT(rows.size(), 1000u);
   EXPECT_EQ(rows[0],
             (std::vector<std::string>{"x_m", "y_m", "ex_vpm", "ey_vpm", "e_vpm", "phi_v"}));
-  const auto& model = std::get<fields::BipolarField>(sim.electrostatics->field);
+  const auto& model = std::get<fields::LineChargeField>(sim.electrostatics->field);
   double phi_min = 0.0, phi_max = -1e9;
   for (std::size_t k = 1; k < rows.size(); ++k) {
     ASSERT_EQ(rows[k].size(), 6u);
@@ -258,7 +264,9 @@ TEST(SeparatorScene, FieldCsvIsTheFieldModel) {
     EXPECT_NEAR(std::stod(r[5]), model.potential(p), 1e-8 * 35000);
   }
   EXPECT_NEAR(phi_max, 0.0, 1e-6);  // in the drum (0 there; a rounding above just outside)
-  EXPECT_NEAR(phi_min, -35000.0, 1e-3);
+  // Down to the electrodes' potential; the line charges overshoot it by a
+  // few kV just outside the thin wire (docs/physics.md §3.2).
+  EXPECT_LE(phi_min, -35000.0 + 1e-3);
   const std::string svg = read_text(dir / "field.svg");
   EXPECT_TRUE(svg.starts_with("<?xml"));
   EXPECT_NE(svg.find("|E| (kV/cm)"), std::string::npos);
@@ -307,41 +315,43 @@ std::vector<double> positions(const std::vector<Landing>& all, const std::string
   return x;
 }
 
-// 0.1 s of the reference scene's feed (about 570 particles), run until
-// nearly all of it has landed, the FR-4 flakes after riding 3/4 of a turn
-// to the brush (1.6 s). Thresholds (measured at seed 1 in brackets):
+// 0.1 s of the reference scene's feed (about 170 flakes), run as the
+// scene runs, until every particle fed is collected or lost. Thresholds
+// (measured at seed 1 in brackets; the whole 1 s feed in docs/validation.md):
+//  - every particle accounted for: the run completes, none active;
 //  - copper: at least 90 % of it in the conductor product (100 %), whose
-//    copper grade is at least 90 % (99.96 %); at most 5 % of the FR-4
-//    there (0.02 %);
-//  - FR-4 into the near (nonconductor) product: at least 40 % of it (50 %)
-//    and no copper, at least 85 % of that brushed off the drum (charge 0:
-//    97 %; 81-96 % over earlier engines). Half the FR-4 mass is flakes, pinned by the face law
-//    (stages.hpp) and brushed off: 98 % of them reach the near product. The other half
-//    is grains, whose sphere-law image force (at most 1.06 m g at 0.5 mm)
-//    cannot hold them under the drum, where 1.36 m g pulls them off: they
-//    slide off the lower front into the middling (README).
+//    copper grade is at least 85 % (FR-4 flakes too thick for their image
+//    pull to hold them fly beyond splitter 2's edge); none in the
+//    non-conductor product;
+//  - FR-4: at least 60 % of it in the non-conductor product, at most 10 %
+//    in the conductor product; at least half of what reaches the
+//    non-conductor product brushed off the drum (charge 0): the rest
+//    leaves the drum under its front, charged.
 TEST(SeparatorScene, ShortFeedSeparatesCopperFromFr4) {
-  const Simulation sim =
-      load(kScenes + "ces_pcb.yaml", {{"feeds.nozzle.duration", "0.1 s"}, {"time.end", "1.6 s"}});
+  const Simulation sim = load(kScenes + "ces_pcb.yaml", {{"feeds.nozzle.duration", "0.1 s"}});
   const fs::path dir = run_scene(sim, "short_feed");
   const auto summary = nlohmann::json::parse(read_text(dir / "summary.json"));
   EXPECT_TRUE(summary["balance"]["exact"].get<bool>());
   const int fed = summary["balance"]["fed"]["count"];
-  EXPECT_GT(fed, 400);
-  EXPECT_LE(summary["balance"]["active"]["count"].get<int>(), fed / 50) << "still in flight";
+  EXPECT_GT(fed, 120);
+  EXPECT_EQ(summary["balance"]["active"]["count"].get<int>(), 0);
   const std::vector<Landing> all = landings(dir);
   const double copper = mass(all, "copper"), fr4 = mass(all, "fr4");
   const double cu_far = mass(all, "copper", "conductor"), fr4_far = mass(all, "fr4", "conductor");
-  EXPECT_GE(cu_far / copper, 0.9);
-  EXPECT_GE(cu_far / (cu_far + fr4_far), 0.9);
-  EXPECT_LE(fr4_far / fr4, 0.05);
   const double fr4_near = mass(all, "fr4", "nonconductor");
-  EXPECT_GE(fr4_near / fr4, 0.4);
-  EXPECT_EQ(mass(all, "copper", "nonconductor"), 0.0);
   double brushed = 0.0;
   for (const Landing& l : all)
     if (l.material == "fr4" && l.product == "nonconductor" && l.charge == 0.0) brushed += l.mass;
-  EXPECT_GE(brushed / fr4_near, 0.85);
+  std::printf("[ short feed ] %d fed; copper %.1f %% far, grade %.1f %%; FR-4 %.1f %% near, "
+              "%.1f %% far, %.1f %% of the near brushed\n",
+              fed, 100 * cu_far / copper, 100 * cu_far / (cu_far + fr4_far), 100 * fr4_near / fr4,
+              100 * fr4_far / fr4, 100 * brushed / fr4_near);
+  EXPECT_GE(cu_far / copper, 0.9);
+  EXPECT_GE(cu_far / (cu_far + fr4_far), 0.85);
+  EXPECT_EQ(mass(all, "copper", "nonconductor"), 0.0);
+  EXPECT_GE(fr4_near / fr4, 0.6);
+  EXPECT_LE(fr4_far / fr4, 0.1);
+  EXPECT_GE(brushed / fr4_near, 0.5);
 }
 
 // Quantile p of x, linear between order statistics (numpy's default).
@@ -392,7 +402,10 @@ Share short_share(const std::vector<double>& x, double gap) {
 }
 
 // The seed's Figure 10 over three feed rates: the copper landing spreads
-// wider as the feed rate grows. The feed-rate scenes drop the mix at rest
+// wider as the feed rate grows. At the seed's roll speed, 44.8 rpm, that
+// of its figure (the reference machine turns at 70 rpm, where copper
+// grains leave the roll 29 deg past the top and the low tail is wide at
+// every feed rate: 30, 10 and 13 % short at 5, 40 and 160 g/s). The feed-rate scenes drop the mix at rest
 // from a feeder's lip at the top of the drum, which must accelerate it by
 // friction; particles lying on others (friction 0.2 instead of the drum's
 // 0.5) leave the drum slower and land short, so the copper landing grows a
@@ -433,7 +446,9 @@ TEST(SeparatorScene, CopperLandingWidensWithFeedRate) {
   std::vector<double> spread, spread_error;
   for (const char* rate : {"5", "40", "160"}) {
     SCOPED_TRACE(std::string(rate) + " g/s");
-    const Simulation sim = load(kScenes + "ces_feedrate/feed_" + rate + "gps.yaml");
+    const Simulation sim = load(kScenes + "ces_feedrate/feed_" + rate + "gps.yaml",
+                                {{"bodies.drum.motion.rotation.speed", "44.8 rpm"},
+                                 {"bodies.brush.motion.rotation.speed", "44.8 rpm"}});
     const fs::path dir = run_scene(sim, std::string("feed_") + rate);
     const auto summary = nlohmann::json::parse(read_text(dir / "summary.json"));
     EXPECT_TRUE(summary["balance"]["exact"].get<bool>());

@@ -47,6 +47,14 @@ Feeder::Feeder(const Feed& feed, std::uint64_t scene_seed, const Model& model)
   if (feed_.mix.empty()) throw std::invalid_argument("feed '" + feed_.name + "' has no mix");
   stats_.fed.resize(feed_.mix.size());
   for (const FeedComponent& c : feed_.mix) {
+    if (c.drawn) {
+      const double largest = c.drawn->extent.quantile_by_number(1.0);
+      for (const DrawnShape::Rung& r : c.drawn->ladder)
+        max_bounding_radius_ =
+            std::max(max_bounding_radius_,
+                     largest / r.extent * model.shapes.at(std::size_t(r.shape)).bounding_radius);
+      continue;
+    }
     const double largest = c.size.quantile_by_number(1.0) / c.shape_size;
     max_bounding_radius_ =
         std::max(max_bounding_radius_, largest * shape_of(model, c).bounding_radius);
@@ -63,9 +71,12 @@ double Feeder::fed_amount() const {
   return feed_.mass_rate > 0.0 ? t.kg() : double(t.count);
 }
 
+bool Feeder::finished(double t) const { return t >= feed_.start + feed_.duration && !owing_; }
+
 void Feeder::feed(State& state) {
   const double goal = target(state.time + model_->step);
   neighbours_valid_ = false;
+  owing_ = false;
   while (fed_amount() < goal) {
     if (!pending_) pending_ = draw_candidate();
     const double amount = feed_.mass_rate > 0.0 ? pending_->mass : 1.0;
@@ -73,6 +84,7 @@ void Feeder::feed(State& state) {
     if (fed_amount() + 0.5 * amount > goal) return;
     if (!place(state, *pending_)) {
       ++stats_.deferrals;
+      owing_ = true;
       return;
     }
     pending_.reset();
@@ -96,19 +108,36 @@ int Feeder::choose_component() const {
   return best;
 }
 
+// A size drawn for the component's shape, or (drawn dimensions) a
+// thickness and a width or length, which pick the contact shape and give
+// the mass and inertia.
 Feeder::Candidate Feeder::draw_candidate() {
   Candidate c;
   c.component = choose_component();
   const FeedComponent& comp = feed_.mix[std::size_t(c.component)];
-  const double diameter = comp.size.sample(rng_);
-  c.scale = diameter / comp.shape_size;
-  const ParticleShape& shape = shape_of(*model_, comp);
-  c.mass = particle_mass(*model_, comp.shape, c.scale, comp.material);
+  const double density = model_->materials.materials().at(std::size_t(comp.material)).density;
+  double size = 0.0;
+  if (comp.drawn) {
+    const double t = comp.drawn->thickness.sample(rng_);
+    size = comp.drawn->extent.sample(rng_);
+    const DrawnShape::Rung& rung = comp.drawn->rung(t, size);
+    c.shape = rung.shape;
+    c.scale = size / rung.extent;
+    c.mass = density * comp.drawn->volume(t, size);
+    c.inertia = c.mass * comp.drawn->unit_inertia(
+                             t, size, model_->shapes.at(std::size_t(c.shape)).unit_inertia);
+  } else {
+    size = comp.size.sample(rng_);
+    c.shape = comp.shape;
+    c.scale = size / comp.shape_size;
+    c.mass = particle_mass(*model_, comp.shape, c.scale, comp.material);
+    c.inertia = c.mass * c.scale * c.scale * shape_of(*model_, comp).unit_inertia;
+  }
   if (!(std::isfinite(c.mass) && c.mass > 0.0))
-    throw std::runtime_error("feed '" + feed_.name + "': a particle of diameter " +
-                             std::to_string(diameter) + " m has mass " + std::to_string(c.mass) +
+    throw std::runtime_error("feed '" + feed_.name + "': a particle of size " +
+                             std::to_string(size) + " m has mass " + std::to_string(c.mass) +
                              " kg (check its size distribution, shape size and density)");
-  const double radius = c.scale * shape.bounding_radius;
+  const double radius = c.scale * model_->shapes.at(std::size_t(c.shape)).bounding_radius;
   if (radius > max_bounding_radius_) {
     max_bounding_radius_ = radius;
     neighbours_valid_ = false;
@@ -123,7 +152,7 @@ bool Feeder::place(State& state, const Candidate& c) {
   for (int attempt = 0; attempt < feed_.max_attempts; ++attempt) {
     Vec3 x;
     for (int k = 0; k < 3; ++k) x[k] = region.min[k] + uniform() * (region.max[k] - region.min[k]);
-    const Quat q = feed_.random_orientation ? random_orientation() : Quat::Identity();
+    const Quat q = orientation(c);
     if (overlaps_bodies(state, c, x, q) || overlaps_particles(state, c, x, q)) {
       ++stats_.retries;
       continue;
@@ -131,7 +160,7 @@ bool Feeder::place(State& state, const Candidate& c) {
     Vec3 v = feed_.velocity;
     if (feed_.velocity_spread > 0.0)
       for (int k = 0; k < 3; ++k) v[k] += feed_.velocity_spread * (2.0 * uniform() - 1.0);
-    add_particle(*model_, state, comp.shape, c.scale, comp.material, x, q, v);
+    add_particle(state, c.shape, c.scale, comp.material, c.mass, c.inertia, x, q, v);
     const Particles& p = state.particles;
     neighbours_.push_back(p.size() - 1);
     stats_.fed[std::size_t(c.component)].add(to_mass_units(p.mass.back()));
@@ -142,7 +171,7 @@ bool Feeder::place(State& state, const Candidate& c) {
 
 bool Feeder::overlaps_bodies(const State& state, const Candidate& c, const Vec3& x,
                              const Quat& q) {
-  const ParticleShape& s = shape_of(*model_, feed_.mix[std::size_t(c.component)]);
+  const ParticleShape& s = model_->shapes.at(std::size_t(c.shape));
   for (std::size_t k = 0; k < model_->bodies.size(); ++k) {
     const Pose& pose = state.bodies.pose[k];
     for (std::size_t j = 0; j < s.centers.size(); ++j) {
@@ -159,7 +188,7 @@ bool Feeder::overlaps_bodies(const State& state, const Candidate& c, const Vec3&
 
 bool Feeder::overlaps_particles(const State& state, const Candidate& c, const Vec3& x,
                                 const Quat& q) const {
-  const ParticleShape& s = shape_of(*model_, feed_.mix[std::size_t(c.component)]);
+  const ParticleShape& s = model_->shapes.at(std::size_t(c.shape));
   const double radius = c.scale * s.bounding_radius;
   const Particles& p = state.particles;
   for (const std::size_t i : neighbours_) {
@@ -195,7 +224,13 @@ void Feeder::save(ByteWriter& out) const {
   out.value(stats_.retries);
   out.value(stats_.deferrals);
   out.value(pending_.has_value());
-  out.value(pending_.value_or(Candidate{}));
+  const Candidate c = pending_.value_or(Candidate{});
+  out.value(c.component);
+  out.value(c.shape);
+  out.value(c.scale);
+  out.value(c.mass);
+  out.value(c.inertia);
+  out.value(owing_);
   out.value(max_bounding_radius_);
 }
 
@@ -209,8 +244,17 @@ void Feeder::load(ByteReader& in) {
   in.value(stats_.retries);
   in.value(stats_.deferrals);
   const bool pending = in.value<bool>();
-  const auto candidate = in.value<Candidate>();
-  pending_ = pending ? std::optional<Candidate>(candidate) : std::nullopt;
+  Candidate c;
+  in.value(c.component);
+  in.value(c.shape);
+  in.value(c.scale);
+  in.value(c.mass);
+  in.value(c.inertia);
+  if (c.component < 0 || std::size_t(c.component) >= feed_.mix.size() || c.shape < 0 ||
+      std::size_t(c.shape) >= model_->shapes.size())
+    throw CorruptData("feed '" + feed_.name + "': its pending particle does not fit the scene");
+  pending_ = pending ? std::optional<Candidate>(c) : std::nullopt;
+  in.value(owing_);
   in.value(max_bounding_radius_);
   neighbours_valid_ = false;
 }
@@ -218,6 +262,18 @@ void Feeder::load(ByteReader& in) {
 // 53 random bits from the raw engine: the same numbers with every standard
 // library, unlike std::uniform_real_distribution.
 double Feeder::uniform() { return double(rng_() >> 11) * 0x1.0p-53; }
+
+// Random, lying flat, or the shape's principal frame as it is.
+Quat Feeder::orientation(const Candidate& c) {
+  if (!feed_.lie_flat) return feed_.random_orientation ? random_orientation() : Quat::Identity();
+  const Vec3& inertia = model_->shapes.at(std::size_t(c.shape)).unit_inertia;
+  int k = 0;
+  for (int a = 1; a < 3; ++a)
+    if (inertia[a] > inertia[k]) k = a;
+  const Quat turn(Eigen::AngleAxisd(feed_.random_orientation ? 2.0 * kPi * uniform() : 0.0,
+                                    Vec3::Unit(k)));
+  return Quat::FromTwoVectors(Vec3::Unit(k), *feed_.lie_flat) * turn;
+}
 
 // Shoemake's uniform random rotation.
 Quat Feeder::random_orientation() {

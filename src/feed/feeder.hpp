@@ -53,17 +53,22 @@ class Feeder {
   double target(double t) const;
   // The fed amount in the same unit as target().
   double fed_amount() const;
+  // The feed's time is over at t and the last step placed everything it owed.
+  bool finished(double t) const;
 
   // What the feed carries from one step to the next (its random stream,
-  // tallies, the particle drawn but not yet placed), for checkpoints.
+  // tallies, the particle drawn but not yet placed, whether it owes one),
+  // for checkpoints.
   void save(ByteWriter& out) const;
   void load(ByteReader& in);
 
  private:
   struct Candidate {
     int component = 0;
+    int shape = 0;  // Model::shapes index
     double scale = 1.0;
     double mass = 0.0;
+    Vec3 inertia = Vec3::Zero();  // principal
   };
 
   Candidate draw_candidate();
@@ -74,6 +79,7 @@ class Feeder {
                           const Quat& q) const;
   void find_neighbours(const State& state);
   double uniform();
+  Quat orientation(const Candidate& c);
   Quat random_orientation();
 
   Feed feed_;
@@ -84,6 +90,7 @@ class Feeder {
   double max_bounding_radius_ = 0.0;     // of any particle this feed can draw
   std::vector<std::size_t> neighbours_;  // particles that may touch the region
   bool neighbours_valid_ = false;        // found this step
+  bool owing_ = false;                   // the last step deferred a particle
   std::vector<geo::SurfaceHit> hits_;    // scratch for body queries
 };
 

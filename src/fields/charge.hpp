@@ -48,6 +48,14 @@ double pauthenier_time_constant(double field, double current_density);
 // in a constant field.
 double pauthenier_charge(double saturation_charge, double time_constant, double t);
 
+// Charge after `dt` of Pauthenier growth toward the signed `saturation` with
+// time constant `tau`, from `charge` now. Exact for a constant field: the
+// law is read backwards to the time t at which a neutral particle would
+// carry `charge`, then advanced to t + dt. A charge of the opposite sign is
+// first neutralised (t < 0); a charge at or beyond saturation is left as it
+// is (no ion reaches it). saturation = 0 or tau = ∞: no charging.
+double pauthenier_growth(double charge, double saturation, double tau, double dt);
+
 // What a particle sees inside the corona zone at one instant.
 struct Corona {
   double field = 0.0;            // |E| at the particle, V/m
@@ -55,14 +63,49 @@ struct Corona {
   double ion_sign = -1.0;        // +1 or −1: the corona wire's polarity
 };
 
-// Charge after `dt` in the corona, from `charge` now. Exact for a constant
-// field: the law is read backwards to the time t at which a neutral
-// particle would carry `charge`, then advanced to t + dt. A charge of the
-// opposite sign is first neutralised (t < 0); a charge at or beyond
-// saturation is left as it is (no ion reaches it). J <= 0 or E = 0: no
-// charging.
+// A sphere's charge after `dt` in the corona (pauthenier_growth toward its
+// Q_s with τ_c). J <= 0 or E = 0: no charging.
 double pauthenier_step(double charge, double radius, double eps_r_particle, const Corona& corona,
                        double dt);
+
+// ------------------------------------------- flat flakes lying on the drum --
+
+// A flake lying flat on the grounded drum, as the charging laws see it: the
+// disc of its face area A = π a² and its thickness t (= volume / A).
+struct FlatFlake {
+  double face_area = 0.0;  // A, m²
+  double thickness = 0.0;  // t, m
+  double radius() const;   // a = √(A/π)
+  double thinness() const; // x = t / a
+};
+
+// Saturation charge magnitude of an insulating flake lying flat on the
+// grounded drum in the normal field |E| (docs/physics.md §5.3): ions land
+// until no field line ends on its exposed faces. Thin-plate limit
+// Q_s = (4/3) εr ε0 |E| a³/t (thin_flake_saturation_charge), times the
+// ratio the axisymmetric Laplace solve gives for its t/a (tabulated; 1.06
+// at t/a = 0.01, 1.93 at 0.36, 3.07 at 1; the solve is in
+// tests/flake_laplace_test.cpp). Sign: that of the corona ions.
+double flake_saturation_charge(const FlatFlake& flake, double eps_r_particle, double field);
+double thin_flake_saturation_charge(const FlatFlake& flake, double eps_r_particle, double field);
+
+// κ of the flat image law (flat_image_force) for an insulating flake of
+// permittivity εr charged to saturation lying flat: the share of the pull
+// that is its own, so that κ Q_s²/(2 ε0 A) + Q_s |E| is the total pull the
+// Laplace solve gives at saturation (docs/physics.md §5.5). 9/8 in the
+// thin-plate limit (σ ∝ √(a² − ρ²)); 0.85 at t/a = 0.36 and 0.68 at 1 for
+// FR-4; never below 0.
+double flake_image_factor(const FlatFlake& flake, double eps_r_particle);
+inline constexpr double kThinFlakeImageFactor = 9.0 / 8.0;
+
+// A conducting flake lying flat on the grounded drum in the normal field
+// E·n (docs/physics.md §5.1): the charge Q_c = ε0 εr E A and the lift
+// ½ ε0 εr E² A along n of the roll's own surface charge on its top face
+// (Gauss's law, t << a), times the ratios the Laplace solve gives for its
+// t/a (tabulated; 1.20 and 1.31 at t/a = 0.05, 2.33 and 3.10 at 0.4). Q_c
+// has the sign of E·n; the lift is >= 0.
+double flat_conductor_charge(const FlatFlake& flake, double normal_field, double eps_r_medium);
+double flat_conductor_lift(const FlatFlake& flake, double normal_field, double eps_r_medium);
 
 // ----------------------------------------------- insulators: relaxation --
 
@@ -80,18 +123,19 @@ double decay_step(double charge, double tau, double dt);
 double image_force(double charge, double radius, double eps_r_medium);
 
 // Image (pinning) force magnitude of a flat insulating flake lying on the
-// drum with its charge Q spread over a face of area A, toward the drum:
-// F_im = Q² / (2 ε0 εr A) (docs/physics.md §5.5), εr of the
-// MEDIUM. It is the pull between a sheet of charge σ = Q/A and its image
-// across the thin air gap of the contact, σ² A / (2 ε0): the parallel-plate
-// limit, good when the flake is much wider than thick (its charge's field
-// lines then nearly all end on the drum under it, whichever face of the
-// flake the charge sits on, so it holds for ions on the top face too).
+// drum with its charge Q on a face of area A, toward the drum:
+// F_im = κ Q² / (2 ε0 εr A) (docs/physics.md §5.5), εr of the MEDIUM. For
+// a thin flake it is the Maxwell stress ∫σ²/(2ε0) dA across the thin air
+// gap of the contact, where the field is σ/ε0 (all the flake's flux ends
+// on the drum under it): κ = 1 for a uniform σ, 9/8 for the saturated
+// σ ∝ √(a² − ρ²); flake_image_factor gives κ for a thicker flake.
 // Lifted off by `gap` (a hop, or a flake riding just above the drum), the
 // force is bridged to that of a point charge and its image 2·gap apart:
-// F = Q² / (4π ε0 εr ((2 gap)² + A/(2π))) (inference: exact in both
-// limits, gap = 0 and gap >> √A; 80 % of the contact value at gap = 0.1 √A).
-double flat_image_force(double charge, double face_area, double eps_r_medium, double gap = 0.0);
+// F = Q² / (4π ε0 εr ((2 gap)² + A/(2π κ))) (inference: exact in both
+// limits, gap = 0 and gap >> √A; 80 % of the contact value at gap =
+// 0.1 √A for κ = 1). κ <= 0: no pull.
+double flat_image_force(double charge, double face_area, double eps_r_medium, double gap = 0.0,
+                        double kappa = kThinFlakeImageFactor);
 
 // ----------------------------------------------------------------- drag --
 

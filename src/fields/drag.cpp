@@ -18,7 +18,7 @@ Vec3 drag_force(const DragSpec& spec, const Vec3& velocity, double radius) {
 DragStage::DragStage(DragSpec spec, const Model& model) : spec_(spec) {
   if (!(spec_.air.viscosity > 0.0 && spec_.air.density > 0.0))
     throw std::invalid_argument("drag: air viscosity and density must be positive");
-  for (const ParticleShape& s : model.shapes) unit_radius_.push_back(equal_volume_radius(s.volume));
+  for (const Material& m : model.materials.materials()) density_.push_back(m.density);
 }
 
 void DragStage::apply(Particles& p) const {
@@ -26,7 +26,7 @@ void DragStage::apply(Particles& p) const {
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
   for (std::ptrdiff_t s = 0; s < n; ++s) {
     const auto i = std::size_t(s);
-    const double radius = p.scale[i] * unit_radius_[std::size_t(p.shape[i])];
+    const double radius = equal_volume_radius(p.mass[i] / density_[std::size_t(p.material[i])]);
     p.force[i] += drag_force(spec_, p.velocity[i], radius);
   }
 }

@@ -1,7 +1,8 @@
 // Air drag on the particles, from each particle's velocity relative to
 // still air: a force stage (sim/world.hpp runs it after this step's
 // collision and before its solve). A sphere cluster feels the drag of its
-// equal-volume sphere, r = scale (3V/4π)^⅓, at its centre of mass. Every
+// equal-volume sphere, r = (3V/4π)^⅓ with V = mass / density (a drawn flake's
+// own volume, not its contact geometry's), at its centre of mass. Every
 // particle is updated by its own loop iteration, so forces are bitwise the
 // same for any thread count.
 #pragma once
@@ -22,7 +23,7 @@ struct DragSpec {
 };
 
 // Adds each particle's drag to its force (the forces stage). Reads the
-// particles' velocity, shape and scale; writes their force.
+// particles' velocity, mass and material; writes their force.
 class DragStage {
  public:
   // Throws std::invalid_argument for a non-positive viscosity or density.
@@ -31,7 +32,7 @@ class DragStage {
 
  private:
   DragSpec spec_;
-  std::vector<double> unit_radius_;  // per shape: the equal-volume sphere's radius at scale 1
+  std::vector<double> density_;  // per material
 };
 
 }  // namespace ces::fields

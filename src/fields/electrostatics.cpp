@@ -56,11 +56,10 @@ double touch_tolerance(const Contacts& c, std::size_t k, const Bodies& bodies, s
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Flat shapes (ShapeElectrics): at least this many thicknesses wide both
-// ways across their thinnest principal axis. The built-in flake of aspect
-// 0.2 is 5; at 3 the parallel-plate picture of the flat image force (field
-// lines from the flake's charge end on the drum under it) still holds
-// roughly, below it a grain is better described by the sphere law.
-constexpr double kFlatWidth = 3.0;
+// ways across their thinnest principal axis, so t/a <= 2/1.5 = 1.33, inside
+// the Laplace table of the flake laws (fields/charge.cpp, to t/a = 2). The
+// measured PCB flakes are 1.9 to 50 times as wide as thick.
+constexpr double kFlatWidth = 1.5;
 // Cells per side of the grid the footprint area is counted on: the area of
 // a disc comes out within 0.1 %.
 constexpr int kFootprintCells = 512;
@@ -92,32 +91,42 @@ double union_area(const std::vector<std::array<double, 3>>& discs) {
 
 }  // namespace
 
-ShapeElectrics shape_electrics(const ParticleShape& shape) {
-  ShapeElectrics e;
-  e.radius = equal_volume_radius(shape.volume);
-  e.charging_radius = e.radius;
-  // Extent along each principal axis.
+namespace {
+
+// The thinnest principal axis k of a shape, and the shape's extents.
+int thinnest_axis(const ParticleShape& shape, Vec3& extent) {
   Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);
   for (std::size_t s = 0; s < shape.centers.size(); ++s) {
     const Vec3 r = Vec3::Constant(shape.radii[s]);
     lo = lo.cwiseMin(shape.centers[s] - r), hi = hi.cwiseMax(shape.centers[s] + r);
   }
-  const Vec3 extent = hi - lo;
-  int k = 0;  // the thinnest axis
+  extent = hi - lo;
+  int k = 0;
   for (int a = 1; a < 3; ++a)
     if (extent[a] < extent[k]) k = a;
+  return k;
+}
+
+}  // namespace
+
+double footprint_area(const ParticleShape& shape) {
+  Vec3 extent;
+  const int k = thinnest_axis(shape, extent);
   const int i = (k + 1) % 3, j = (k + 2) % 3;
-  const double thickness = extent[k];
-  const double width = std::min(extent[i], extent[j]);
-  if (width < kFlatWidth * thickness) return e;
-  // The face: the shadow of the spheres on the plane across the thin axis.
   std::vector<std::array<double, 3>> discs;
   for (std::size_t s = 0; s < shape.centers.size(); ++s)
     discs.push_back({shape.centers[s][i], shape.centers[s][j], shape.radii[s]});
-  e.face_area = union_area(discs);
-  const double plate = shape.volume / e.face_area;  // thickness of the same volume
-  const double surface = 2.0 * e.face_area + 2.0 * std::sqrt(kPi * e.face_area) * plate;
-  e.charging_radius = std::sqrt(surface / (4.0 * kPi));
+  return union_area(discs);
+}
+
+ShapeElectrics shape_electrics(const ParticleShape& shape) {
+  ShapeElectrics e;
+  Vec3 extent;
+  const int k = thinnest_axis(shape, extent);
+  const double thickness = extent[k];
+  const double width = std::min(extent[(k + 1) % 3], extent[(k + 2) % 3]);
+  if (width < kFlatWidth * thickness) return e;
+  e.face_area = footprint_area(shape);
   e.face_normal = Vec3::Unit(k);
   e.flat_cos = std::sqrt(1.0 - std::min(1.0, (thickness / width) * (thickness / width)));
   return e;
@@ -146,14 +155,6 @@ double saturate(double charge, double saturation) {
   return saturation;
 }
 
-double corona_step(double charge, double radius, double eps_r, const CoronaZone& zone,
-                   double local_field, double h) {
-  const double e = zone.field.value_or(local_field);
-  if (zone.mode == CoronaCharging::Pauthenier)
-    return pauthenier_step(charge, radius, eps_r, {e, zone.current_density, zone.ion_sign}, h);
-  return saturate(charge, zone.ion_sign * pauthenier_saturation_charge(radius, eps_r, e));
-}
-
 // ------------------------------------------------------------ validation --
 
 void validate_material(const ElectricalMaterial& m, std::size_t index) {
@@ -171,7 +172,8 @@ void validate_zone(const CoronaZone& z, std::size_t index) {
           at + "needs angle_begin < angle_end <= angle_begin + 2 pi");
   require(z.depth > 0.0, at + "depth must be positive");
   require(!z.field || (std::isfinite(*z.field) && *z.field >= 0.0), at + "field must be >= 0");
-  require(z.current_density >= 0.0, at + "current density must be >= 0");
+  require(z.mode == CoronaCharging::Saturation || z.current_density > 0.0,
+          at + "Pauthenier charging needs a current density > 0");
   require(z.ion_sign == 1.0 || z.ion_sign == -1.0, at + "ion sign must be +1 or -1");
 }
 
@@ -195,6 +197,9 @@ void validate(const ElectrostaticsSpec& spec, const Model& model) {
               " electrical materials given for " + std::to_string(materials) + " materials");
   for (std::size_t k = 0; k < spec.materials.size(); ++k) validate_material(spec.materials[k], k);
   for (std::size_t k = 0; k < spec.corona.size(); ++k) validate_zone(spec.corona[k], k);
+  for (const CoronaBand& b : spec.bands)
+    require(b.ion_sign == spec.bands.front().ion_sign && b.peak_current_density >= 0.0,
+            "electrostatics: corona wires of both polarities, expected one");
   require(spec.medium_relative_permittivity >= 1.0,
           "electrostatics: medium relative permittivity must be >= 1");
   if (const auto* grid = std::get_if<std::shared_ptr<const GridField>>(&spec.field))
@@ -213,21 +218,24 @@ bool lies_flat(const ShapeElectrics& shape, const Quat& orientation, const Vec3*
 // Where one particle is this step, as far as its charges are concerned.
 struct Site {
   Vec3 position;            // centre of mass
-  Vec3 field;               // E there; zero beyond the drum width
+  Vec3 field;               // E there (with the corona space charge); zero beyond the drum width
+  double current_density;   // J of the corona bands there
   bool active;              // |z| <= half-width
   const Vec3* drum_normal;  // out of the drum at the touching contact, or null
   const Vec3* near_normal;  // out of the drum at the closest listed contact, or null
   double near_gap;          // its gap (>= 0)
   bool brush;               // touches the brush
-  double radius;            // equivalent sphere
-  double charging_radius;   // r_q of Pauthenier's law (ShapeElectrics)
-  double face_area;         // a flat flake lying flat over the drum: A; else 0
+  double radius;            // sphere of the particle's volume
+  FlatFlake flake;          // a flat shape's face and thickness; face area 0 for a compact one
+  bool flat_near;           // lying flat over the closest drum contact
+  bool flat_touch;          // lying flat on the touching drum contact
 };
 
 ElectrostaticsStage::ElectrostaticsStage(ElectrostaticsSpec spec, const Model& model)
     : spec_(std::move(spec)) {
   validate(spec_, model);
   for (const ParticleShape& s : model.shapes) shapes_.push_back(shape_electrics(s));
+  for (const Material& m : model.materials.materials()) density_.push_back(m.density);
 }
 
 void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
@@ -275,23 +283,45 @@ const ElectricalMaterial& ElectrostaticsStage::material(const Particles& p, std:
   return spec_.materials[std::size_t(p.material[i])];
 }
 
+// The field model's E at x; inside corona bands scaled to √(E² + E_sc²)
+// (docs/physics.md §4.5), and their current density J.
+Vec3 ElectrostaticsStage::field_at(const Vec3& x, double& current_density) const {
+  Vec3 e = fields::field_at(spec_.field, x);
+  double space_charge = 0.0;
+  current_density = 0.0;
+  for (const CoronaBand& band : spec_.bands) {
+    if (!band.covers(x)) continue;
+    current_density += band.current_density(x);
+    space_charge += std::pow(band.space_charge_field(x), 2);
+  }
+  const double e2 = e.squaredNorm();
+  if (space_charge > 0.0 && e2 > 0.0) e *= std::sqrt(1.0 + space_charge / e2);
+  return e;
+}
+
 Site ElectrostaticsStage::site(const Particles& p, std::size_t i, const Contacts& c) const {
   const Vec3& x = p.position[i];
   const bool active = std::abs(x.z()) <= spec_.drum.half_width;
   const std::int32_t k = drum_contact_[i], kn = near_contact_[i];
+  const Vec3* touch = k >= 0 ? &c.normal[std::size_t(k)] : nullptr;
   const Vec3* near = kn >= 0 ? &c.normal[std::size_t(kn)] : nullptr;
   const ShapeElectrics& shape = shapes_[std::size_t(p.shape[i])];
-  const double s = p.scale[i];
+  const double volume = p.mass[i] / density_[std::size_t(p.material[i])];
+  const double area = p.scale[i] * p.scale[i] * shape.face_area;
+  double j = 0.0;
+  const Vec3 e = active ? field_at(x, j) : Vec3::Zero();
   return {x,
-          active ? field_at(spec_.field, x) : Vec3::Zero(),
+          e,
+          j,
           active,
-          k >= 0 ? &c.normal[std::size_t(k)] : nullptr,
+          touch,
           near,
           kn >= 0 ? std::max(0.0, c.gap[std::size_t(kn)]) : 0.0,
           brush_touch_[i] != 0,
-          s * shape.radius,
-          s * shape.charging_radius,
-          lies_flat(shape, p.orientation[i], near) ? s * s * shape.face_area : 0.0};
+          equal_volume_radius(volume),
+          {area, area > 0.0 ? volume / area : 0.0},
+          lies_flat(shape, p.orientation[i], near),
+          lies_flat(shape, p.orientation[i], touch)};
 }
 
 // One particle: both parts' charges for this step, then the w-weighted
@@ -307,14 +337,26 @@ void ElectrostaticsStage::update(Particles& p, std::size_t i, const Contacts& c,
 }
 
 // Conductor: on the grounded drum its charge follows the local field
-// (relaxation ~1e-19 s) and it feels the lift force of a sphere on a
-// plane; off the drum the charge is frozen and the force is Q E.
+// (relaxation ~1e-19 s) and it feels the lift force of a flat flake or of a
+// sphere on a plane; off the drum the charge is frozen and the force is Q E.
 Vec3 ElectrostaticsStage::metal_part(double& charge, const Site& at) const {
   if (!at.drum_normal) return charge * at.field;
   const Vec3& n = *at.drum_normal;
   const double en = at.field.dot(n);
-  charge = conductor_induced_charge(at.radius, en, spec_.medium_relative_permittivity);
+  const double eps = spec_.medium_relative_permittivity;
+  if (at.flat_touch) {
+    charge = flat_conductor_charge(at.flake, en, eps);
+    return flat_conductor_lift(at.flake, en, eps) * n;
+  }
+  charge = conductor_induced_charge(at.radius, en, eps);
   return conductor_lift_force(charge, en) * n;
+}
+
+// Pauthenier's saturation charge magnitude in |E|: a flake's lying flat,
+// else the sphere's.
+double ElectrostaticsStage::saturation_charge(const Site& at, double eps_r, double field) const {
+  if (at.flat_near) return flake_saturation_charge(at.flake, eps_r, field);
+  return pauthenier_saturation_charge(at.radius, eps_r, field);
 }
 
 // Insulator: relaxes, charges under the corona, loses everything at the
@@ -323,11 +365,21 @@ Vec3 ElectrostaticsStage::insulating_part(double& charge, const ElectricalMateri
                      double h) const {
   if (m.decay_time > 0.0 && std::isfinite(m.decay_time))
     charge = decay_step(charge, m.decay_time, h);
+  const double eps = m.relative_permittivity;
   if (at.active) {
     for (const CoronaZone& zone : spec_.corona) {
-      if (in_zone(zone, spec_.drum.radius, at.position))
-        charge = corona_step(charge, at.charging_radius, m.relative_permittivity, zone,
-                             at.field.norm(), h);
+      if (!in_zone(zone, spec_.drum.radius, at.position)) continue;
+      const double e = zone.field.value_or(at.field.norm());
+      const double saturation = zone.ion_sign * saturation_charge(at, eps, e);
+      charge = zone.mode == CoronaCharging::Saturation
+                   ? saturate(charge, saturation)
+                   : pauthenier_growth(charge, saturation,
+                                       pauthenier_time_constant(e, zone.current_density), h);
+    }
+    if (at.current_density > 0.0) {
+      const double e = at.field.norm();
+      charge = pauthenier_growth(charge, spec_.bands.front().ion_sign * saturation_charge(at, eps, e),
+                                 pauthenier_time_constant(e, at.current_density), h);
     }
   }
   if (at.brush) charge = 0.0;
@@ -336,10 +388,11 @@ Vec3 ElectrostaticsStage::insulating_part(double& charge, const ElectricalMateri
     // At the gap of the closest sphere: a flake lying flat by the
     // bridged face law, anything else by the sphere law with its charge
     // r + gap from the drum.
-    const double eps = spec_.medium_relative_permittivity;
-    const double pull = at.face_area > 0.0
-                            ? flat_image_force(charge, at.face_area, eps, at.near_gap)
-                            : image_force(charge, at.radius + at.near_gap, eps);
+    const double eps_m = spec_.medium_relative_permittivity;
+    const double pull =
+        at.flat_near ? flat_image_force(charge, at.flake.face_area, eps_m, at.near_gap,
+                                        flake_image_factor(at.flake, eps))
+                     : image_force(charge, at.radius + at.near_gap, eps_m);
     force -= pull * *at.near_normal;
   }
   return force;

@@ -5,9 +5,9 @@
 // Plain data in, a stage out: a scene compiler fills the specs. Frame as in
 // fields/electric.hpp: drum axis = z through the origin, gravity −y.
 //
-// The laws are those of spheres; a sphere cluster uses its equivalent sphere,
-// r = scale · (3 V / 4π)^(1/3) with V its shape's volume, except that a flat
-// insulating flake charges and is pinned as a flake (ShapeElectrics below).
+// Particles take the laws of spheres (the sphere of their volume, from
+// their mass and density), except that a flat shape lying flat over the
+// drum charges, is pinned and is lifted as a flake (ShapeElectrics below).
 // Forces act at the centre of mass (no torque). Every particle is updated by its own loop
 // iteration, so charges and forces are bitwise the same for any thread count.
 #pragma once
@@ -19,50 +19,49 @@
 
 #include "collision/contacts.hpp"
 #include "fields/charge.hpp"
+#include "fields/corona.hpp"
 #include "fields/electric.hpp"
 #include "model/model.hpp"
 #include "model/state.hpp"
 
 namespace ces::fields {
 
-// How a particle shape takes corona charge and is pinned to the drum by its
-// image charge, at scale 1 (lengths scale with Particles::scale, areas with
-// its square).
+// How a particle shape lies on the drum, at scale 1 (lengths scale with
+// Particles::scale, areas with its square).
 //
-// Compact shapes (spheres, grains, rods, most clusters) use the sphere of
-// equal volume, r = (3V/4π)^⅓: Pauthenier's Q_s = 4π ε0 r² p E and the
-// image force Q² / (4π ε0 εr (2r)²) of a charge at the centre (docs/physics.md §5).
+// Compact shapes (spheres, grains, rods, most clusters) take the laws of
+// the sphere of their volume, r = (3V/4π)^⅓ with V = mass / density:
+// Pauthenier's Q_s = 4π ε0 r² p E, the image force Q² / (4π ε0 εr (2r)²)
+// of a charge at the centre, Lebedev and Skal'skaya's induced charge and
+// lift (docs/physics.md §5).
 //
-// Flat shapes (the built-in flake up to aspect 1/3; any cluster at least
-// three times as wide as thick both ways across its thinnest principal
-// axis):
+// Flat shapes (the built-in flake up to aspect 0.6; any cluster at least
+// 1.5 times as wide as thick both ways across its thinnest principal axis,
+// so t/a <= 1.33, inside the Laplace table of fields/charge.hpp) lying flat
+// over the drum, tilted by less than the angle at which the rim lifts off
+// by the shape's thickness (sin α = t/W), take the laws of a flat flake
+// (FlatFlake) of face area A and thickness t = V/A:
 //  - face_area A: the shadow of its spheres on the plane across that axis,
 //    the face that lies on the drum (0.60 for the unit flake of aspect 0.2,
 //    2.10 d² in its equal-volume diameter d);
-//  - charge (an assumption, stated in the README): Pauthenier's saturation
-//    surface density p ε0 E over the flake's surface S = 2A + P t, P =
-//    2√(πA) (the perimeter of a disc of area A), t = V/A (the plate of the
-//    cluster's volume on that footprint); that is Pauthenier with the
-//    surface-equivalent radius r_q = √(S/4π), which for a sphere is r. At
-//    aspect 0.2, S = 5.48 d² against the equal-volume sphere's π d², so the
-//    charge is 1.75x. Per unit of face area it is 2.61 p ε0 E = 5.4 ε0 E
-//    (FR-4, p = 2.06), within what a flake lying on the grounded drum can
-//    hold before the field over the middle of its top face reverses: 3.2
-//    ε0 E for a disc of radius 2.5 t without dielectric (its charge sheet and
-//    image, σ t / (ε0 √(4t² + a²)) above it), more with the flake's εr
-//    between the sheet and the drum;
-//  - image force: Q² / (2 ε0 εr A) while it lies flat on the drum (tilted
-//    by less than the angle at which its rim lifts off by its own
-//    thickness, sin α = t/W); on its edge, the equal-volume sphere's law.
+//  - an insulator charges to flake_saturation_charge and is pulled by
+//    flat_image_force with flake_image_factor;
+//  - a conductor takes flat_conductor_charge and flat_conductor_lift.
+// The volume comes from the particle's mass, not from its shape: a feed
+// that draws flake dimensions gives a thin flake the contact geometry of a
+// thicker one (feed/feed.hpp) but its own mass, and so its own thickness.
 struct ShapeElectrics {
-  double radius = 0.0;               // equal-volume sphere (m at scale 1)
-  double charging_radius = 0.0;      // r_q of Pauthenier's Q_s
   double face_area = 0.0;            // A (m² at scale 1); 0: a compact shape
   Vec3 face_normal = Vec3::UnitZ();  // flat shapes: normal of the face, principal frame
   double flat_cos = 1.0;             // lying flat when |face_normal · n_drum| >= flat_cos
 };
 
 ShapeElectrics shape_electrics(const ParticleShape& shape);
+
+// The area of a shape's shadow on the plane across its thinnest principal
+// axis (the union of its spheres' discs, counted on a 512 x 512 grid:
+// within 0.1 % for a disc), at scale 1.
+double footprint_area(const ParticleShape& shape);
 
 inline constexpr double kNoDecay = std::numeric_limits<double>::infinity();
 
@@ -102,33 +101,36 @@ struct CoronaZone {
   // |E| that charges the particle, V/m; unset: the field model's |E| at the
   // particle (the static-electrode field has no corona space charge).
   std::optional<double> field;
-  double current_density = defaults::kCoronaCurrentDensity;  // J, A/m² (Pauthenier only)
+  double current_density = 0.0;   // J, A/m² (Pauthenier only; a scene must give it)
   double ion_sign = -1.0;         // polarity of the corona ions: ±1
 };
 
-// Charging and electric forces (docs/physics.md §5). Per particle and step:
-//  - metal part: while touching the grounded drum, Q_c = (2/3)π³ ε0 εr r²
-//    E·n with n the contact normal out of the drum, and the lift force
-//    0.832 Q_c (E·n) n; off the drum, the last Q_c is kept and the force is
-//    Q_c E.
-//  - insulating part: decays by exp(−h/τ), charges in a corona zone, is
-//    zeroed by a touch of the brush; the force is Q E, plus the image force
-//    along −n of its closest drum contact in this step's list (touching or
-//    within the collision envelope, gap g): Q² / (4π ε0 εr_medium (2(r +
-//    g))²), or for a flat flake lying flat over the drum the face law Q² /
-//    (2 ε0 εr_medium A) at g = 0, bridged to a point charge far off
-//    (flat_image_force; ShapeElectrics). The image force does not wait for a
-//    touch because the relaxed contact model makes a particle that lands
-//    sliding hop by a fraction of a millimetre, while its charge keeps
-//    pulling it back (a flake's by the same parallel-plate force).
+// Charging and electric forces (docs/physics.md §4-5). Per particle and step:
+//  - the field E: the field model's at the particle's centre; inside the
+//    band of a corona wire, scaled up to √(E_L² + E_sc²) along the same
+//    direction by the space charge of its ions (Deutsch's assumption).
+//  - metal part: while touching the grounded drum, its induced charge and
+//    lift along n (the contact normal out of the drum) follow E·n (flat
+//    flake or sphere laws); off the drum, the last charge is kept and the
+//    force is Q E.
+//  - insulating part: decays by exp(−h/τ), charges in a corona zone or band
+//    (Pauthenier growth toward the flat-flake or sphere saturation charge in
+//    |E|, τ_c = 4 ε0 |E| / J), is zeroed by a touch of the brush; the force
+//    is Q E, plus the image force along −n of its closest drum contact in
+//    this step's list (touching or within the collision envelope, gap g):
+//    the sphere law with its charge r + g from the drum, or for a flake
+//    lying flat over the drum the face law bridged to a point charge far
+//    off (flat_image_force). The image force does not wait for a touch
+//    because the relaxed contact model makes a particle that lands sliding
+//    hop by a fraction of a millimetre, while its charge keeps pulling it
+//    back.
 // "Touching" is decided from this step's contacts: a gap below 1 % of the
 // sphere radius, plus the chord sag a particle carried by a turning body
 // shows at the start of a step, plus the lift 2 μ |v_t| h the relaxed cone
-// complementarity gives a contact sliding at v_t (see stages.cpp). E is the field at the
-// particle's centre, taken as zero where |z| > drum.half_width whatever the
-// field model returns: no corona charging and no electric force there (a
-// conductor touching the drum there discharges). Decay and the brush act
-// everywhere.
+// complementarity gives a contact sliding at v_t (see electrostatics.cpp). E is zero where
+// |z| > drum.half_width whatever the field model returns: no corona
+// charging and no electric force there (a conductor touching the drum
+// there discharges). Decay and the brush act everywhere.
 //
 // Where the charges live: Particles::charge holds a conductor's induced
 // charge and an insulator's or mixed particle's insulating charge (a scene
@@ -142,7 +144,8 @@ struct ElectrostaticsSpec {
   Drum drum;                       // radius (corona depth) and half-width (forces off beyond)
   int drum_body = 0;               // Model::bodies index of the grounded drum
   std::optional<int> brush_body;   // Model::bodies index of the brush
-  std::vector<CoronaZone> corona;  // may be empty: no corona charging
+  std::vector<CoronaZone> corona;  // sectors set by hand; may be empty
+  std::vector<CoronaBand> bands;   // the corona wires' bands; may be empty
   std::vector<ElectricalMaterial> materials;  // one per Model material, same order
   double medium_relative_permittivity = Air{}.relative_permittivity;
 };
@@ -166,12 +169,15 @@ class ElectrostaticsStage {
   const ElectricalMaterial& material(const Particles& p, std::size_t i) const;
   Site site(const Particles& p, std::size_t i, const Contacts& c) const;
   void update(Particles& p, std::size_t i, const Contacts& c, double h) const;
+  Vec3 field_at(const Vec3& x, double& current_density) const;
+  double saturation_charge(const Site& at, double eps_r, double field) const;
   Vec3 metal_part(double& charge, const Site& at) const;
   Vec3 insulating_part(double& charge, const ElectricalMaterial& m, const Site& at,
                        double h) const;
 
   ElectrostaticsSpec spec_;
   std::vector<ShapeElectrics> shapes_;      // per Model shape
+  std::vector<double> density_;             // per Model material
   std::vector<std::int32_t> drum_contact_;  // per particle: touching drum contact, or -1
   std::vector<std::int32_t> near_contact_;  // per particle: closest drum contact, or -1
   std::vector<std::uint8_t> brush_touch_;   // per particle

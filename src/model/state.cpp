@@ -126,7 +126,13 @@ std::uint64_t add_particle(const Model& model, State& state, int shape, double s
                            const Vec3& velocity, const Vec3& angular_velocity) {
   const ParticleShape& s = model.shapes[std::size_t(shape)];
   const double mass = particle_mass(model, shape, scale, material);
-  const Vec3 inertia = mass * scale * scale * s.unit_inertia;
+  return add_particle(state, shape, scale, material, mass, mass * scale * scale * s.unit_inertia,
+                      position, orientation, velocity, angular_velocity);
+}
+
+std::uint64_t add_particle(State& state, int shape, double scale, int material, double mass,
+                           const Vec3& inertia, const Vec3& position, const Quat& orientation,
+                           const Vec3& velocity, const Vec3& angular_velocity) {
   const std::uint64_t id = state.next_id++;
   state.particles.push(id, shape, scale, material, mass, inertia, position, orientation,
                        velocity, angular_velocity, state.time);

@@ -97,6 +97,11 @@ std::uint64_t add_particle(const Model& model, State& state, int shape, double s
                            const Quat& orientation = Quat::Identity(),
                            const Vec3& velocity = Vec3::Zero(),
                            const Vec3& angular_velocity = Vec3::Zero());
+// The same with its own mass and principal inertia (a drawn flake's, which
+// its contact shape does not have).
+std::uint64_t add_particle(State& state, int shape, double scale, int material, double mass,
+                           const Vec3& inertia, const Vec3& position, const Quat& orientation,
+                           const Vec3& velocity, const Vec3& angular_velocity = Vec3::Zero());
 
 // Pose and velocity of a kinematic body at time t, in closed form.
 void prescribed_state(const RigidBody& body, double t, Pose& pose, Vec3& v, Vec3& w);

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "feed/shapes.hpp"
+#include "fields/electrostatics.hpp"
 #include "scene/diagnostics.hpp"
 #include "scene/electrostatics.hpp"
 #include "scene/limits.hpp"
@@ -153,6 +154,10 @@ class Compiler {
     const Node& time = root_.at("time");
     model_->step = time.at("step").number();
     sim_.end_time = time.at("end").number();
+    sim_.until_collected = time.at("until").string() == "collected";
+    const Node& end = time.at("end");
+    sim_.end_origin = Diagnostic{end.mark.file, end.mark.line, end.mark.column, end.path, ""}.str();
+    sim_.end_origin.resize(sim_.end_origin.size() - 2);  // the ": " before a message
     if (model_->step > sim_.end_time)
       diags_.error(time.at("step"), "step " + format(model_->step) +
                                         " s is longer than the run (end " + format(sim_.end_time) +
@@ -596,12 +601,22 @@ class Compiler {
       Feed feed;
       feed.name = f.at("name").string();
       feed.start = f.at("start").number();
-      if (const Node* duration = f.find("duration")) feed.duration = duration->number();
+      if (const Node* duration = f.find("duration"))
+        feed.duration = duration->number();
+      else if (sim_.until_collected)
+        diags_.error(f, "feed '" + feed.name + "' has no duration, so it never stops and the run "
+                        "could not end with time.until: collected; expected a duration");
       const Node& rate = f.at("rate");
       (rate.dimension == "mass_rate" ? feed.mass_rate : feed.count_rate) = rate.number();
       feed.velocity = vec3(f.at("velocity"));
       feed.velocity_spread = f.at("velocity_spread").number();
       feed.random_orientation = f.at("random_orientation").boolean();
+      if (f.at("lie_flat").boolean()) {
+        if (model_->gravity == Vec3::Zero())
+          diags_.error(f.at("lie_flat"), "lying flat needs a down, expected gravity");
+        else
+          feed.lie_flat = -model_->gravity.normalized();
+      }
       feed.max_attempts = f.at("max_attempts").scalar.get<int>();
       const std::vector<double> across = read_mix(f.at("mix"), feed);
       const Node& region = f.at("region");
@@ -661,6 +676,20 @@ class Compiler {
       component.mass_fraction = c.at("fraction").number();
       total += component.mass_fraction;
       const auto material = dense_material(c.at("material"), "feed '" + feed.name + "'");
+      if (c.find("thickness")) {
+        auto drawn = drawn_shape(c);
+        if (!material || !drawn) continue;
+        component.material = *material;
+        across.push_back(drawn_across(*drawn));
+        component.drawn = std::move(*drawn);
+        feed.mix.push_back(component);
+        continue;
+      }
+      if (!c.find("size")) {
+        diags_.error(c, "missing key 'size', expected a size law, or thickness with width "
+                        "(flake) or length (rod)");
+        continue;
+      }
       const auto shape = particle_shape(c);
       const feed::Basis basis =
           c.at("by").string() == "mass" ? feed::Basis::mass : feed::Basis::number;
@@ -752,12 +781,19 @@ class Compiler {
     double per_kg = 0.0;  // particles in a kilogram of the mix
     for (const FeedComponent& c : f.mix) {
       const double density = model_->materials.materials()[std::size_t(c.material)].density;
-      const double volume = model_->shapes[std::size_t(c.shape)].volume;
-      const double mean_mass = density * volume * c.size.mean_mass_per_particle_factor() /
-                               (c.shape_size * c.shape_size * c.shape_size);
-      per_kg += c.mass_fraction / mean_mass;
+      per_kg += c.mass_fraction / (density * mean_volume(c));
     }
     return f.mass_rate * time * per_kg;
+  }
+
+  // A drawn flake's or rod's at its median dimensions: a bound's estimate.
+  double mean_volume(const FeedComponent& c) const {
+    if (c.drawn)
+      return c.drawn->volume(c.drawn->thickness.quantile_by_number(0.5),
+                             c.drawn->extent.quantile_by_number(0.5));
+    const double volume = model_->shapes[std::size_t(c.shape)].volume;
+    return volume * c.size.mean_mass_per_particle_factor() /
+           (c.shape_size * c.shape_size * c.shape_size);
   }
 
   // Without gravity, fed particles keep their feed velocity: with none,
@@ -769,6 +805,89 @@ class Compiler {
                    "particles are fed but the scene gives no gravity: they move only by their feed "
                    "velocity, drag and fields; expected gravity (e.g. [0, -9.81 m/s^2, 0]), or "
                    "gravity: [0, 0, 0] to say there is none");
+  }
+
+  // ---------------------------------------------------------------- drawn shapes
+
+  // The thinnest contact geometry of a drawn flake (37 spheres) or rod (19
+  // spheres), and the ratio of neighbouring aspects on the ladder.
+  static constexpr double kFlakeMinAspect = 0.15;
+  static constexpr double kRodMinAspect = 0.1;
+  static constexpr double kLadderRatio = 1.1;
+
+  // A flake or rod whose dimensions are drawn: its laws and the ladder of
+  // contact shapes the drawn aspects reach; nullopt: reported.
+  std::optional<DrawnShape> drawn_shape(const Node& c) {
+    const Node* shape = c.find("shape");
+    const std::string name = shape ? shape->string() : "sphere";
+    if (name != "flake" && name != "rod") {
+      diags_.error(shape ? *shape : c.at("thickness"),
+                   "a drawn thickness needs shape: flake or rod, expected one of them");
+      return std::nullopt;
+    }
+    const bool flake = name == "flake";
+    const char* extent_key = flake ? "width" : "length";
+    for (const char* key : {"size", "aspect", flake ? "length" : "width"})
+      if (const Node* extra = c.find(key)) {
+        diags_.error(*extra, std::string("the ") + name + "'s dimensions are drawn from thickness and " +
+                                 extent_key + ", expected no " + key);
+        return std::nullopt;
+      }
+    const Node* extent = c.find(extent_key);
+    if (!extent) {
+      diags_.error(c, std::string("missing key '") + extent_key + "', expected the " + name +
+                          "'s " + extent_key + " law with its thickness");
+      return std::nullopt;
+    }
+    const auto t = size_distribution(c.at("thickness"), feed::Basis::number);
+    const auto e = size_distribution(*extent, feed::Basis::number);
+    if (!t || !e) return std::nullopt;
+    DrawnShape d;
+    d.kind = flake ? DrawnShape::Kind::Flake : DrawnShape::Kind::Rod;
+    d.thickness = *t;
+    d.extent = *e;
+    d.ladder = ladder(name, t->quantile_by_number(0.0) / e->quantile_by_number(1.0),
+                      t->quantile_by_number(1.0) / e->quantile_by_number(0.0));
+    return d;
+  }
+
+  // The rungs of aspect a0 1.1^k (and 1) the drawn aspects [lo, hi] reach.
+  std::vector<DrawnShape::Rung> ladder(const std::string& name, double lo, double hi) {
+    const double a0 = name == "flake" ? kFlakeMinAspect : kRodMinAspect;
+    std::vector<double> aspects;
+    for (double a = a0; a < 1.0; a *= kLadderRatio) aspects.push_back(a);
+    aspects.push_back(1.0);
+    std::vector<DrawnShape::Rung> out;
+    for (std::size_t k = 0; k < aspects.size(); ++k) {
+      const bool below = k + 1 < aspects.size() && aspects[k + 1] <= lo;
+      const bool above = k > 0 && aspects[k - 1] >= hi;
+      if (!below && !above) out.push_back(rung(name, aspects[k]));
+    }
+    return out;
+  }
+
+  DrawnShape::Rung rung(const std::string& name, double aspect) {
+    const std::string key = name + "~" + format(aspect);
+    const auto it = shape_index_.find(key);
+    const int index = it != shape_index_.end()
+                          ? *it->second
+                          : add_shape(builtin_spheres(name, aspect), nullptr, name);
+    shape_index_[key] = index;
+    const ParticleShape& shape = model_->shapes[std::size_t(index)];
+    const double extent =
+        name == "flake" ? std::sqrt(4.0 * fields::footprint_area(shape) / kPi) : 1.0;
+    shape_sizes_[std::size_t(index)] = extent;
+    return {index, aspect, extent};
+  }
+
+  // The bounding diameter of the largest particle a drawn shape can make.
+  double drawn_across(const DrawnShape& d) const {
+    const double largest = d.extent.quantile_by_number(1.0);
+    double across = 0.0;
+    for (const DrawnShape::Rung& r : d.ladder)
+      across = std::max(across, 2.0 * largest / r.extent *
+                                    model_->shapes[std::size_t(r.shape)].bounding_radius);
+    return across;
   }
 
   // ---------------------------------------------------------------- particle shapes
@@ -1183,7 +1302,8 @@ class Compiler {
         {"domain", sim_.domain.has_value()},
         {"drag", sim_.drag.has_value()},
         {"electrostatics", sim_.electrostatics.has_value()},
-        {"corona_charging", sim_.electrostatics && !sim_.electrostatics->corona.empty()},
+        {"corona_charging", sim_.electrostatics && (!sim_.electrostatics->corona.empty() ||
+                                                    !sim_.electrostatics->bands.empty())},
         {"brush", sim_.electrostatics && sim_.electrostatics->brush_body.has_value()},
         {"trajectories", sim_.output.trajectories.every > 0.0},
     };

@@ -8,6 +8,7 @@
 #include "scene/diagnostics.hpp"
 #include "scene/limits.hpp"
 #include "scene/resolve.hpp"
+#include "scene/schema.hpp"
 
 namespace ces::scene {
 namespace {
@@ -19,6 +20,7 @@ std::string format(double x) {
 }
 
 std::string metres(double x) { return format(x) + " m"; }
+std::string millimetres(double x) { return format(x * 1e3) + " mm"; }
 std::string degrees(double rad) { return format(rad * 180.0 / kPi) + " deg"; }
 
 // A direction is "along z" to within rounding of the scene's numbers.
@@ -36,6 +38,8 @@ class ElectrostaticsCompiler {
     const auto brush = brush_body(drum_body);
     std::vector<NamedElectrode> electrodes = read_electrodes(drum);
     auto field = drum ? field_model(*drum, electrodes) : std::nullopt;
+    std::vector<fields::CoronaBand> bands =
+        field && drum ? corona_bands(*drum, *field, electrodes) : std::vector<fields::CoronaBand>{};
     std::vector<fields::CoronaZone> corona = read_corona();
     std::vector<fields::ElectricalMaterial> materials = read_materials();
     if (!field || !brush) return;
@@ -44,6 +48,7 @@ class ElectrostaticsCompiler {
     spec.drum_body = *drum_body;
     spec.brush_body = *brush;
     spec.corona = std::move(corona);
+    spec.bands = std::move(bands);
     spec.materials = std::move(materials);
     spec.medium_relative_permittivity = s_.at("medium_permittivity").number();
     sim.electrostatics = std::move(spec);
@@ -112,6 +117,7 @@ class ElectrostaticsCompiler {
         continue;
       }
       out.push_back({name, *electrode});
+      nodes_.push_back(&e);
     }
     return out;
   }
@@ -212,6 +218,63 @@ class ElectrostaticsCompiler {
     }
   }
 
+  // ------------------------------------------------------------ corona wires
+
+  // A wire this thick never ionises at separator voltages (Peek's onset
+  // field grows as the radius shrinks, but the surface field of a thick
+  // electrode falls faster); the corona laws of docs/physics.md §4 are for
+  // wires of a few tenths of a millimetre.
+  static constexpr double kMaxWireRadius = 1e-3;
+
+  std::vector<fields::CoronaBand> corona_bands(const fields::Drum& drum,
+                                               const fields::ElectricField& field,
+                                               const std::vector<NamedElectrode>& electrodes) {
+    std::vector<fields::CoronaBand> out;
+    for (std::size_t k = 0; k < electrodes.size(); ++k) {
+      const Node& e = *nodes_[k];
+      if (e.at("type").string() != "corona") continue;
+      if (const auto band = corona_band(e, drum, field, electrodes[k].electrode)) out.push_back(*band);
+    }
+    return out;
+  }
+
+  std::optional<fields::CoronaBand> corona_band(const Node& e, const fields::Drum& drum,
+                                                const fields::ElectricField& field,
+                                                const fields::Electrode& wire) {
+    const auto* lines = std::get_if<fields::LineChargeField>(&field);
+    if (!lines) {
+      diags_.error(e.at("type"), "a corona electrode needs the field of every electrode at the "
+                                 "wire, expected field.model: line_charges");
+      return std::nullopt;
+    }
+    if (wire.radius > kMaxWireRadius) {
+      diags_.error(e.at("radius"), "a corona wire of radius " + millimetres(wire.radius) +
+                                       " does not ionise, expected a radius of at most " +
+                                       millimetres(kMaxWireRadius));
+      return std::nullopt;
+    }
+    const std::string polarity = wire.potential < 0.0 ? "negative" : "positive";
+    const Node* mobility = e.find("mobility");
+    const fields::CoronaWire spec{
+        wire,
+        mobility ? mobility->number()
+                 : schema()
+                       .at("definitions")
+                       .at("electrode")
+                       .at("properties")
+                       .at("mobility")
+                       .at("x-default-by-polarity")
+                       .at(polarity)
+                       .get<double>(),
+        e.at("air_density").number()};
+    try {
+      return fields::corona_band(drum, *lines, spec);
+    } catch (const std::invalid_argument& what) {
+      diags_.error(e.at("voltage"), std::string(what.what()) + ", expected a voltage above onset");
+      return std::nullopt;
+    }
+  }
+
   // ------------------------------------------------------------ corona
 
   std::vector<fields::CoronaZone> read_corona() {
@@ -227,7 +290,14 @@ class ElectrostaticsCompiler {
       zone.mode = z.at("charging").string() == "saturation" ? fields::CoronaCharging::Saturation
                                                             : fields::CoronaCharging::Pauthenier;
       if (const Node* field = z.find("field")) zone.field = field->number();
-      zone.current_density = z.at("current_density").number();
+      const Node* current = z.find("current_density");
+      if (current) {
+        zone.current_density = current->number();
+      } else if (zone.mode == fields::CoronaCharging::Pauthenier) {
+        diags_.error(z, "Pauthenier charging needs the ion current density, expected "
+                        "current_density (or charging: saturation)");
+        continue;
+      }
       zone.ion_sign = z.at("polarity").string() == "positive" ? 1.0 : -1.0;
       out.push_back(zone);
     }
@@ -308,6 +378,7 @@ class ElectrostaticsCompiler {
   const Node& s_;
   Diagnostics& diags_;
   bool ok_ = true;  // no electrode was reported
+  std::vector<const Node*> nodes_;  // the scene's entry of each electrode read
 };
 
 }  // namespace

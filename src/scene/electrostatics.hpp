@@ -1,9 +1,11 @@
-// The scene's electrostatics section -> the field model, charging zones and
-// per-material electrical behaviour (fields/stages.hpp), with the checks
-// the schema cannot make: the drum and brush exist and the drum sits where
-// the field models put it, electrodes clear of the drum and of each other,
-// the model gets the electrodes it needs, a grid file that reads, corona
-// sectors in order, materials that say how they conduct.
+// The scene's electrostatics section -> the field model, the corona wires'
+// bands, charging zones and per-material electrical behaviour
+// (fields/electrostatics.hpp), with the checks the schema cannot make: the
+// drum and brush exist and the drum sits where the field models put it,
+// electrodes clear of the drum and of each other, the model gets the
+// electrodes it needs, corona wires thin, above onset and in the
+// line-charge field, a grid file that reads, corona sectors in order with
+// their current, materials that say how they conduct.
 #pragma once
 #include <filesystem>
 #include <functional>

@@ -34,7 +34,8 @@ constexpr std::array kKinds = {
     Kind{"viscosity", "a dynamic viscosity", "Pa s", "1.81e-5 Pa s", dim(1, -1, -1)},
     Kind{"pressure", "a pressure", "Pa", "100 MPa", dim(1, -1, -2)},
     Kind{"electric_field", "an electric field", "V/m", "4 kV/cm", dim(1, 1, -3, -1)},
-    Kind{"current_density", "a current density", "A/m^2", "1e-4 A/m^2", dim(0, -2, 0, 1)},
+    Kind{"current_density", "a current density", "A/m^2", "1e-3 A/m^2", dim(0, -2, 0, 1)},
+    Kind{"mobility", "an ion mobility", "m^2/V/s", "2.1 cm^2/V/s", dim(-1, 0, 2, 1)},
 };
 
 // A unit symbol. Its SI value is factor * 10^decimal: keeping powers of ten

@@ -1,6 +1,7 @@
-// The run: the World of the compiled scene stepped to the end time (or
-// until a signal or an error), observed by the outputs as it goes, then
-// every output written from what was accumulated.
+// The run: the World of the compiled scene stepped to the end time (or,
+// with time.until: collected, until its feed is accounted for; or until a
+// signal or an error), observed by the outputs as it goes, then every
+// output written from what was accumulated.
 #include "sim/run.hpp"
 
 #include <omp.h>
@@ -28,6 +29,7 @@
 #include "output/trajectories.hpp"
 #include "sim/checkpoint.hpp"
 #include "sim/output_folder.hpp"
+#include "sim/stop.hpp"
 #include "sim/threads.hpp"
 #include "sim/world.hpp"
 
@@ -301,6 +303,11 @@ void Runner::step_to_end() {
       reason_ = "stopped by the caller";
       return;
     }
+    if (sim_.until_collected && feed_accounted_for(world_)) break;
+  }
+  if (sim_.until_collected && !feed_accounted_for(world_)) {
+    reason_ = cap_message(sim_, world_);
+    return;
   }
   complete_ = true;
 }

@@ -55,6 +55,10 @@ struct Simulation {
   std::string resolved_yaml;       // written to the output folder
   std::uint64_t seed = 0;
   double end_time = 1.0;
+  // time.until: collected: the run ends once every feed has stopped and no
+  // particle is left, and end_time is a cap that fails the run.
+  bool until_collected = false;
+  std::string end_origin;          // "file:line:col: time.end", for the cap's message
   std::shared_ptr<Model> model;
   std::vector<Feed> feeds;
   std::vector<Collector> collectors;
@@ -71,7 +75,8 @@ struct Simulation {
 };
 
 // The diameter of each Model shape at scale 1 (m): taken from the feeds'
-// components (shape_size), else twice the shape's bounding radius.
+// components (shape_size; a drawn shape's rungs, their width or length),
+// else twice the shape's bounding radius.
 std::vector<double> shape_sizes(const Simulation& sim);
 
 }  // namespace ces
