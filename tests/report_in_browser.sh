@@ -7,7 +7,7 @@ set -eu
 sim=$1 scene=$2 artefacts=$3
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-"$sim" "$scene" --set time.end=0.3s -q -o "$tmp/run"
+"$sim" "$scene" --set time.end=0.3s --set time.until=end -q -o "$tmp/run"
 browser=$(command -v chromium || command -v chromium-browser || command -v google-chrome) ||
   { echo "no Chromium on the PATH (.ci/setup installs Debian's chromium)"; exit 1; }
 open_page() {

@@ -20,13 +20,13 @@ TEST(Report, Base64OfTheStandardsVectors) {  // RFC 4648, section 10
 }
 
 // The reference scene for 0.3 s: the page carries summary.json's figures,
-// the machine (drum, brush, electrode, splitters, the collector's plane),
+// the machine (drum, brush, wire, electrode, splitters, the collector's plane),
 // 100 frames from t = 0 to the end whose last one holds every particle
 // still in the machine, and no address outside the page.
 TEST(Report, CarriesTheRunsFiguresFramesAndMachine) {
   const test::fs::path dir = test::fresh_dir("report");
   const test::Outcome r = test::ces_sim(std::string(CES_SOURCE_DIR) +
-                                        "/scenes/ces_pcb.yaml --set time.end=0.3s -q -o " +
+                                        "/scenes/ces_pcb.yaml --set time.end=0.3s --set time.until=end -q -o " +
                                         dir.string());
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json data = test::report_data(dir / "report.html");
@@ -37,7 +37,7 @@ TEST(Report, CarriesTheRunsFiguresFramesAndMachine) {
   EXPECT_EQ(data["materials"], (nlohmann::json{"steel", "brush", "copper", "fr4", "plate"}));
 
   const nlohmann::json& machine = data["machine"];
-  ASSERT_EQ(machine["circles"].size(), 3u);  // drum, brush, electrode
+  ASSERT_EQ(machine["circles"].size(), 4u);  // drum, brush, the corona wire, the electrode
   EXPECT_EQ(machine["circles"][0]["r"], 1600);  // 0.16 m in 0.1 mm
   EXPECT_EQ(machine["polygons"].size(), 2u);    // the splitters
   EXPECT_EQ(machine["collectors"].size(), 1u);

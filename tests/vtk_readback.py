@@ -28,8 +28,9 @@ except ImportError as e:
 EVERY = 0.025  # s between frames
 END = 0.05     # s
 DRUM_RADIUS = 0.16  # m, scenes/machines/ces_machine.yaml
-DRUM_SPEED = 44.8 * 2 * math.pi / 60  # rad/s, clockwise seen from +z
-FLAKE_SPHERES = 19  # the built-in flake of aspect 0.2
+DRUM_SPEED = 70 * 2 * math.pi / 60  # rad/s, clockwise seen from +z
+# A flake's spheres fill hexagonal rings: 1 + 3 n (n + 1) of them, n >= 1.
+FLAKE_SPHERES = {1 + 3 * n * (n + 1) for n in range(1, 20)}
 
 
 def check_encoding(path):
@@ -125,7 +126,7 @@ def check_spheres(poly, rows):
             close(c, np.zeros((1, 3)), "sphere centre", abs_tol=1e-7)
             close(d[mine], [float(r["diameter_m"])], "sphere diameter", rel=1e-6)
             continue
-        assert mine.sum() == FLAKE_SPHERES, mine.sum()
+        assert mine.sum() in FLAKE_SPHERES, mine.sum()
         close(c.mean(axis=0), np.zeros(3), "flake centre", abs_tol=1e-7)
         w, qx, qy, qz = (float(r[k]) for k in ("qw", "qx", "qy", "qz"))
         rot = np.array([  # the particle's principal axes in the world, as columns
@@ -142,7 +143,7 @@ def check_machine(static, moving, time):
     names = strings(static.GetFieldData(), "part_names")
     static_parts = {names[k] for k in array(static.GetCellData(), "part")}
     moving_parts = {names[k] for k in array(moving.GetCellData(), "part")}
-    assert static_parts == {"splitter_1", "splitter_2", "electrode"}, static_parts
+    assert static_parts == {"splitter_1", "splitter_2", "wire", "electrode"}, static_parts
     assert moving_parts == {"drum", "brush"}, moving_parts
     drum = names.index("drum")
     first = moving.GetCell(int(np.argmax(array(moving.GetCellData(), "part") == drum)))
@@ -158,7 +159,7 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
         subprocess.run([ces_sim, scene, "-o", str(out), "--quiet", "--threads", "1",
-                        "--set", f"time.end={END}s",
+                        "--set", f"time.end={END}s", "--set", "time.until=end",
                         "--set", f"output.trajectories={{every: {EVERY} s, format: both}}"],
                        check=True)
         frames = csv_frames(out)
@@ -180,7 +181,7 @@ def main():
             check_machine(read_vtp(files["machine (static)"]),
                           read_vtp(files["machine (moving)"]), float(time))
         last = max(by_time, key=float)
-        assert len(frames[last]) > 100, len(frames[last])
+        assert len(frames[last]) > 50, len(frames[last])
         # The last frame is at the end: its particles are those the run
         # still holds by its own balance.
         summary = json.loads((out / "summary.json").read_text())

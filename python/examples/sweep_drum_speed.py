@@ -10,7 +10,7 @@ import ces_sim
 
 scene_file = Path(__file__).resolve().parents[2] / "scenes" / "ces_pcb.yaml"
 for rpm in (30, 45, 60, 75):
-    short = {"time.end": "0.7 s", "feeds.nozzle.duration": "0.1 s"}
+    short = {"time.end": "0.7 s", "time.until": "end", "feeds.nozzle.duration": "0.1 s"}
     speed = {f"bodies.{b}.motion.rotation.speed": f"{rpm} rpm" for b in ("drum", "brush")}
     result = ces_sim.load(scene_file, set={**short, **speed}).run(f"out/sweep/{rpm}rpm")
     p = result.products
