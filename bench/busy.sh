@@ -12,7 +12,7 @@ rounds=${1:-5}; shift || true
 bin=${CES_SIM:-build/ces-sim}
 out=bench/out/busy
 scenes=("$@")
-[ ${#scenes[@]} -eq 0 ] && scenes=(scenes/hopper.yaml "scenes/ces_pcb.yaml --set time.end=0.5s")
+[ ${#scenes[@]} -eq 0 ] && scenes=(scenes/hopper.yaml "scenes/ces_pcb.yaml --set time.end=0.5s --set time.until=end")
 cores=$(nproc)
 mkdir -p "$out"
 
