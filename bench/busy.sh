@@ -2,7 +2,7 @@
 # A run on a machine whose cores other processes keep busy: one busy loop
 # per core runs beside ces-sim while it runs each scene at --threads 1,
 # --threads 2 and the default (threads chosen as the run goes), in rounds
-# that turn the order each time. Writes bench/out/busy.txt (and prints it):
+# that turn the order each time. Writes bench/out/busy/busy.txt (and prints it):
 # each run's wall time, and per scene the medians and their ratios to one
 # thread. Usage, from the repository root:
 #   bash bench/busy.sh [ROUNDS] [SCENE...]    (default: 5, hopper.yaml and ces_pcb to 0.5 s)
