@@ -97,10 +97,12 @@ struct Scene {
   std::shared_ptr<const Simulation> sim;
 };
 
-Scene load(const fs::path& path, py::handle set, py::handle seed) {
+Scene load(const fs::path& path, py::handle set, py::handle seed,
+           const std::vector<fs::path>& include_paths) {
   scene::LoadOptions options;
   options.overrides = overrides(set);
   options.seed = seed_of(seed);
+  for (const fs::path& p : include_paths) options.include_paths.push_back(p.string());
   const py::gil_scoped_release release;
   return {std::make_shared<const Simulation>(scene::load(path.string(), options))};
 }
@@ -296,8 +298,9 @@ PYBIND11_MODULE(ces_sim, m) {
   define_scene(m);
   define_result(m);
   m.def("load", &load, "path"_a, py::kw_only(), "set"_a = py::none(), "seed"_a = py::none(),
+        "include_paths"_a = std::vector<fs::path>{},
         "Loads a scene as ces-sim does: set={key.path: value} as --set (a str value is YAML, "
-        "e.g. '70 rpm'), seed as --seed. Raises SceneError.");
+        "e.g. '70 rpm'), seed as --seed, include_paths as --include-path. Raises SceneError.");
   m.def(
       "read_csv", [](const std::filesystem::path& path) { return to_python(read_csv(path)); },
       "path"_a, "A CSV file of a run or a study as {column: values}.");
