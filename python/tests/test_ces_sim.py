@@ -18,6 +18,13 @@ from pathlib import Path
 WITHOUT_NUMPY = os.environ.get("CES_SIM_WITHOUT_NUMPY") == "1"
 if WITHOUT_NUMPY:
     sys.modules["numpy"] = None  # import numpy raises ImportError
+else:
+    try:
+        import numpy  # noqa: F401
+    except ImportError:
+        sys.exit(f"{sys.executable} cannot import numpy, so the module's arrays are not "
+                 "tested: install python3-numpy, or configure with "
+                 "-DPython3_EXECUTABLE= an interpreter that has it")
 
 import ces_sim  # noqa: E402
 
