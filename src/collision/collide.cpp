@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <span>
+#include <tuple>
 
 #include "common/parallel.hpp"
 
@@ -25,8 +26,8 @@ Vec3 safe_direction(const Vec3& d, double len) {
 }
 
 // One pair's contacts before the manifold reduction, side by side: most
-// are dropped (a flake on the drum keeps 5 of 19), so they go to Contacts'
-// nine arrays only once kept.
+// are dropped (a flake on the drum keeps its hull's corners), so they go
+// to Contacts' nine arrays only once kept.
 struct Candidate {
   Vec3 normal, point;
   double gap, radius;
@@ -43,49 +44,53 @@ void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double 
   out.push_back({n, ca + n * (ra + 0.5 * gap), gap, std::min(ra, rb), key});
 }
 
-// A group's five kept: the deepest, the farthest from the centroid (a), the
-// farthest from a (b), and the farthest on either side of the line ab. In
-// four passes over the members; the highest score wins, ties go to the
-// earlier contact.
-std::array<std::size_t, 5> span_points(const std::vector<Candidate>& c,
-                                       std::span<const std::size_t> members) {
-  Vec3 centroid = Vec3::Zero();
+// A group's kept: the deepest and the corners of the members' convex hull
+// in the plane across the group's normal (Andrew's monotone chain, members
+// ordered by position, ties by contact order, so the choice is the same
+// whatever the gaps). A rigid face's velocity along the normal is affine
+// across the face, so rows that hold at the hull's corners hold at every
+// member inside it: a tumbling flake cannot swing an edge sphere into the
+// drum unseen, as it can past a few points that span the face only.
+void hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> members,
+                 std::vector<std::uint8_t>& keep) {
   std::size_t deepest = members[0];
-  for (std::size_t k : members) {
-    centroid += c[k].point;
+  for (std::size_t k : members)
     if (c[k].gap < c[deepest].gap) deepest = k;
-  }
-  centroid /= double(members.size());
-  auto farthest_from = [&](const Vec3& x) {
-    std::size_t arg = members[0];
-    double top = (c[arg].point - x).squaredNorm();
-    for (std::size_t k : members)
-      if (const double d = (c[k].point - x).squaredNorm(); d > top) arg = k, top = d;
-    return arg;
+  keep[deepest] = 1;
+  const Vec3& n = c[members[0]].normal;
+  const Vec3 u = n.unitOrthogonal(), v = n.cross(u);
+  static thread_local std::vector<std::array<double, 2>> at;
+  static thread_local std::vector<std::size_t> order, chain;
+  at.resize(c.size());
+  for (std::size_t k : members) at[k] = {c[k].point.dot(u), c[k].point.dot(v)};
+  order.assign(members.begin(), members.end());
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return std::tie(at[a], a) < std::tie(at[b], b); });
+  auto turns_left = [&](std::size_t o, std::size_t a, std::size_t b) {
+    return (at[a][0] - at[o][0]) * (at[b][1] - at[o][1]) -
+               (at[a][1] - at[o][1]) * (at[b][0] - at[o][0]) > 0.0;
   };
-  const std::size_t a = farthest_from(centroid);
-  const Vec3& pa = c[a].point;
-  const std::size_t b = farthest_from(pa);
-  const Vec3 side = c[a].normal.cross(c[b].point - pa);
-  std::size_t left = members[0], right = members[0];
-  double top_left = (c[left].point - pa).dot(side), top_right = -top_left;
-  for (std::size_t k : members) {
-    const double s = (c[k].point - pa).dot(side);
-    if (s > top_left) left = k, top_left = s;
-    if (-s > top_right) right = k, top_right = -s;
+  // Lower hull left to right, then upper hull right to left.
+  chain.clear();
+  for (int pass = 0; pass < 2; ++pass) {
+    const std::size_t floor = chain.size();
+    for (std::size_t k : order) {
+      while (chain.size() >= floor + 2 && !turns_left(chain[chain.size() - 2], chain.back(), k))
+        chain.pop_back();
+      chain.push_back(k);
+    }
+    std::reverse(order.begin(), order.end());
   }
-  return {deepest, a, b, left, right};
+  for (std::size_t k : chain) keep[k] = 1;
 }
 
 // A flat face resting on another touches it with many of its spheres at
-// once (a flake lying on the drum: 19). A few spanning the face hold it as
-// well and cost far less, so per group of nearly parallel normals a pair's
-// candidates keep the deepest (it carries the overlap) and four
-// that span the face, chosen by position only so that gap noise between
-// steps does not change them: the farthest from the group's centroid, the
-// farthest from that one, and the farthest on either side of their line
-// (manifold reduction, as Box2D and Jolt do it). A group with other normals
-// (a corner) keeps its own. The kept go to `out` in the candidates' order.
+// once (a flake lying on the drum: 19). The corners of the face's hull hold
+// it as well and cost less, so per group of nearly parallel normals a
+// pair's candidates keep the deepest (it carries the overlap) and the
+// hull's corners (hull_points; manifold reduction, as Box2D and Jolt do
+// it). A group with other normals (a corner) keeps its own. The kept go to
+// `out` in the candidates' order.
 void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b, double mu, double e,
                      Contacts& out) {
   constexpr std::size_t kKeep = 5;
@@ -135,7 +140,7 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b, do
       for (std::size_t k : members) keep[k] = 1;
       continue;
     }
-    for (std::size_t k : span_points(c, members)) keep[k] = 1;
+    hull_points(c, members, keep);
   }
   for (std::size_t k = 0; k < n; ++k)
     if (keep[k]) push(c[k]);

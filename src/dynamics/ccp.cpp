@@ -66,6 +66,9 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   frame_.assign(padded / kLanes * kFrameBlock, 0.0f);
   lever_.assign(6 * padded + 1, 0.0f);
   bias_.assign(padded, 0.0);
+  gap_ = c.gap;
+  radius_ = c.radius;
+  step_ = h;
   metric_.assign(padded / kLanes * kMetricBlock, 0.0f);
   tangent_.resize(2 * nc);
   // World rows for scatter_bodies, and a spare: it loads each contact's
@@ -131,6 +134,15 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
 }
 
 namespace {
+
+// A maximum as reduce_chunks adds its parts.
+struct Worst {
+  double value = 0.0;
+  Worst& operator+=(const Worst& o) {
+    value = std::max(value, o.value);
+    return *this;
+  }
+};
 
 // f.template operator()<I>() for the kernel's instruction set I.
 template <class F>
@@ -339,6 +351,18 @@ void CcpProblem::to_local(ConstSpan P, Span x) const {
     x[3 * k + 2] = F.t2.dot(w);
   }
   std::copy(P.begin() + 3 * nc, P.end(), x.begin() + 3 * nc);
+}
+
+bool CcpProblem::overlaps_within(ConstSpan g, bool world, double tolerance) const {
+  auto excess = [&](std::size_t begin, std::size_t end, Worst& part) {
+    for (std::size_t k = begin; k < end; ++k) {
+      const Vec3 gk(g[3 * k], g[3 * k + 1], g[3 * k + 2]);
+      const double row = world ? normal(k).dot(gk) : gk[0];
+      const double after = -(gap_[k] + step_ * (row - bias_[k]));
+      part.value = std::max(part.value, after - std::max(tolerance * radius_[k], -gap_[k]));
+    }
+  };
+  return reduce_chunks<Worst>(a_.size(), excess).value <= 0.0;
 }
 
 void CcpProblem::world_gradient(ConstSpan P, Span g) const {

@@ -127,6 +127,13 @@ class CcpProblem {
   // Projected-gradient residual (x - Π(x - s g)) / s, s = 1 / max diag N:
   // its RMS over the rows.
   double residual(ConstSpan x, ConstSpan g) const;
+  // Whether the impulses whose gradient is g leave every contact, at the
+  // end of the step, overlapping by at most `tolerance` times its smaller
+  // radius, or, where it overlaps by more already, by no more than now:
+  // from g's normal row v_n + b the overlap after the step is
+  // -(gap + h v_n). g in world rows (the APGD kernel's) or in the
+  // contacts' frames.
+  bool overlaps_within(ConstSpan g, bool world, double tolerance) const;
   // Upper bound on the largest eigenvalue of N (Gershgorin-like, cheap).
   double diagonal_max() const { return diag_max_; }
 
@@ -312,6 +319,9 @@ class CcpProblem {
     return {double(r[0]), double(r[1]), double(r[2])};
   }
   std::vector<double> bias_;
+  // Per contact, for overlaps_within: its gap and smaller radius; the step.
+  std::vector<double> gap_, radius_;
+  double step_ = 0.0;
   // APGD's metric, per block of four contacts: their step weights w, then
   // the bounds 1 / w (apgd_step scales the step by w and |d|^2 by 1 / w:
   // both loaded, no division).

@@ -45,6 +45,15 @@ double dot(ConstSpan a, ConstSpan b) {
   return sum;
 }
 
+// The stopping rule of every solver: the residual at or under the
+// tolerance, and no contact left overlapping by more than the penetration
+// tolerance at the end of the step, nor, where it overlaps more already,
+// by more than now (CcpProblem::overlaps_within). g is the gradient at the
+// iterate.
+bool accurate(const CcpProblem& p, const SolverSettings& s, double rms, ConstSpan g, bool world) {
+  return rms <= s.tolerance && p.overlaps_within(g, world, s.penetration_tolerance);
+}
+
 // The best iterate's record. Until a finite residual is met the stats say
 // NaN: a solve whose every residual was NaN or inf must not report 0.
 struct Best {
@@ -131,7 +140,7 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
       t = p.apgd_step(xs[ix], xs[iold], xs[i1], gs[gx], gs[gold], momentum, 1.0 / L);
     }
     const double rms = std::sqrt(t.res_sum / double(m));
-    if (rms <= s.tolerance) {
+    if (accurate(p, s, rms, gs[g1], true)) {
       record.take(rms);
       record.stats.converged = true;
       record.stats.iterations = it + 1;
@@ -186,7 +195,7 @@ SolveStats solve_spg(const CcpProblem& p, const SolverSettings& s, Span x, Solve
       record.take(rms);
       copy(x, best);
     }
-    if (rms <= s.tolerance) {
+    if (accurate(p, s, rms, g, false)) {
       record.stats.converged = true;
       break;
     }
@@ -288,7 +297,7 @@ SolveStats solve_pgs(const CcpProblem& p, const SolverSettings& s, Span x, Solve
     stats.iterations = it + 1;
     p.gradient(x, g);
     stats.residual = p.residual(x, g);
-    if (stats.residual <= s.tolerance) {
+    if (accurate(p, s, stats.residual, g, false)) {
       stats.converged = true;
       break;
     }

@@ -133,6 +133,9 @@ struct SolverSettings {
   SolverMethod method = SolverMethod::APGD;
   int max_iterations = defaults::kSolverMaxIterations;
   double tolerance = defaults::kSolverTolerance;  // residual (m/s), see dynamics/ccp.hpp
+  // The overlap a solve may leave, relative to the smaller radius: with
+  // the residual, what stops it before max_iterations.
+  double penetration_tolerance = defaults::kPenetrationTolerance;
   double pgs_relaxation = defaults::kSolverRelaxation;  // over-relaxation for projected Gauss-Seidel
   bool warm_start = defaults::kSolverWarmStart;
 };

@@ -90,6 +90,8 @@ Json solver_json(const RunRecord& r) {
   return {{"method", method_name(settings.method)},
           {"max_iterations", settings.max_iterations},
           {"tolerance_mps", settings.tolerance},
+          {"penetration_tolerance", settings.penetration_tolerance},
+          {"penetration_met", s.max_penetration_relative <= settings.penetration_tolerance},
           {"steps_solved", s.solved_steps},
           {"iterations_mean", s.iterations_mean},
           {"iterations_max", s.iterations_max},
@@ -247,14 +249,16 @@ void add_warnings(RunRecord& r) {
   const SolverSummary& s = r.solver;
   if (s.steps_at_cap > 0)
     warn(std::to_string(s.steps_at_cap) + " of " + std::to_string(s.solved_steps) +
-         " solved steps stopped at the iteration cap before reaching the tolerance");
+         " solved steps stopped at the iteration cap before meeting the solver's tolerances");
   if (s.steps_non_finite > 0)
     warn(std::to_string(s.steps_non_finite) + " of " + std::to_string(s.solved_steps) +
          " solved steps met no finite solver residual (NaN or inf in the contact problem): "
          "those steps kept their warm start, apart from the safeguards on finite rows");
-  if (s.max_penetration_relative > 0.1)
+  const double allowed = r.sim->model->solver.penetration_tolerance;
+  if (s.max_penetration_relative > allowed)
     warn("particles overlapped by up to " + g3(s.max_penetration_relative) +
-         " of their radius: consider a smaller time step or more iterations");
+         " of their radius, past solver.penetration_tolerance (" + g3(allowed) +
+         "): consider a smaller time step or a higher max_iterations");
   if (s.steps_above_rayleigh_limit > 0)
     warn(rayleigh_warning(r.sim->model->step, s.rayleigh_time_min, s.steps_above_rayleigh_limit));
   const EnergyBalance& e = r.energy;

@@ -75,6 +75,7 @@ void Compiler::read_solver(const Node& s) {
                                             : SolverMethod::PGS;
   model_->solver.max_iterations = s.at("max_iterations").scalar.get<int>();
   model_->solver.tolerance = s.at("tolerance").number();
+  model_->solver.penetration_tolerance = s.at("penetration_tolerance").number();
   model_->solver.pgs_relaxation = s.at("relaxation").number();
   model_->solver.warm_start = s.at("warm_start").boolean();
 }
