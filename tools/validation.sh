@@ -19,7 +19,7 @@ timed_run() {
   local scene=$1 name=$2 before after t0 t1
   before=$(cut -d' ' -f1 /proc/loadavg)
   t0=$(date +%s.%N)
-  "$sim" "$scene" -o "$out/$name" --quiet
+  "$sim" "$scene" --include-path scenes -o "$out/$name" --quiet
   t1=$(date +%s.%N)
   after=$(cut -d' ' -f1 /proc/loadavg)
   awk -v a="$t0" -v b="$t1" -v l0="$before" -v l1="$after" 'BEGIN { printf "%.0f %s %s\n", b - a, l0, l1 }'
@@ -57,17 +57,18 @@ products=$(awk -F, '
 read -r cu fr lost cu_share grade recovery fr4_rec middling mid_fr4 \
         cu_non cu_mid cu_cond fr_non fr_mid fr_cond cond_share <<< "$products"
 
-# Densities (g per 5 mm bin) on the plane of splitter 2's edge, and the x
-# beyond the drum (x > 0.16 m) where FR-4 - copper changes sign.
-landing=$(awk -F, '
+# Densities (g per 5 mm bin) on the plane of splitter 2's edge, one line
+# per bin, "x copper fr4", from bins.csv's row per bin and material; and the
+# x beyond the drum (x > 0.16 m) where FR-4 - copper changes sign.
+densities=$(awk -F, '
   NR == 1 { for (k = 1; k <= NF; ++k) col[$k] = k; next }
-  { x = 0.5 * ($col["from_m"] + $col["to_m"]); cu = 1e3 * $col["copper_kg"]; fr = 1e3 * $col["fr4_kg"]
-    if (cu > 0 || fr > 0) printf "| %.3f | %.3f | %.3f |\n", x, cu, fr }' "$out/ces_pcb_landing/bins.csv")
-crossings=$(awk -F, '
-  NR == 1 { for (k = 1; k <= NF; ++k) col[$k] = k; next }
-  { x = 0.5 * ($col["from_m"] + $col["to_m"]); d = $col["fr4_kg"] - $col["copper_kg"]
-    if (x > 0.16 && d != 0) { if (last != 0 && (d > 0) != (last > 0)) { printf "%s%.4f", sep, 0.5 * (x + lastx); sep = ", " }
-                  last = d; lastx = x } }' "$out/ces_pcb_landing/bins.csv")
+  { b = $col["bin"] + 0; x[b] = 0.5 * ($col["from_m"] + $col["to_m"])
+    m[b, $col["material"]] = 1e3 * $col["mass_kg"]; if (b > n) n = b }
+  END { for (b = 0; b <= n; ++b) print x[b], m[b, "copper"] + 0, m[b, "fr4"] + 0 }' "$out/ces_pcb_landing/bins.csv")
+landing=$(awk '$2 > 0 || $3 > 0 { printf "| %.3f | %.3f | %.3f |\n", $1, $2, $3 }' <<< "$densities")
+crossings=$(awk '{ d = $3 - $2
+    if ($1 > 0.16 && d != 0) { if (last != 0 && (d > 0) != (last > 0)) { printf "%s%.4f", sep, 0.5 * ($1 + lastx); sep = ", " }
+                               last = d; lastx = $1 } }' <<< "$densities")
 
 verdict() { awk -v v="$1" -v t="$2" -v s="$3" 'BEGIN { ok = s == ">=" ? v >= t : v <= t; print ok ? "met" : "**not met**" }'; }
 balance_ok=$([ "$exact" = true ] && [ "$(balance active)" = 0 ] && echo met || echo "**not met**")
