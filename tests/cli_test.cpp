@@ -206,7 +206,7 @@ TEST(Cli, HostileScenesAreRefusedByValidateAndByRun) {
 // Includes come from the scene's folder, or one named by --include-path.
 TEST(Cli, IncludePathNamesAnotherFolderForIncludes) {
   const fs::path scenes = fs::path(CES_TEST_DIR).parent_path() / "scenes";
-  const std::string scene = (scenes / "ces_feedrate" / "feed_5gps.yaml").string();
+  const std::string scene = (scenes / "validation" / "ces_feedrate.yaml").string();
   const Outcome refused = ces_sim("validate " + scene);
   EXPECT_EQ(refused.code, 2);
   EXPECT_NE(refused.err.find("include: '../machines/ces_machine.yaml' is outside the scene's "

@@ -2,8 +2,10 @@
 // compile to the field model, charging zones, electrical materials, drag
 // and particle shapes; the runner installs only what a scene asks for; the
 // field picture is the field model's; a short feed of the reference machine
-// separates copper from FR-4 with an exact balance; and the copper landing
-// widens with the feed rate (the seed's Figure 10).
+// separates copper from FR-4 with an exact balance; and the published
+// trends of docs/validation.md hold in short: drum speed, voltage, particle
+// size, and the copper landing widening with the feed rate (the seed's
+// Figure 10).
 //
 // Scenes run in-process on one thread, so two tests under ctest -j2 do not
 // fight over the two cores.
@@ -15,7 +17,6 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <numbers>
-#include <random>
 #include <sstream>
 
 #include "feed/shapes.hpp"
@@ -354,6 +355,102 @@ TEST(SeparatorScene, ShortFeedSeparatesCopperFromFr4) {
   EXPECT_GE(brushed / fr4_near, 0.5);
 }
 
+// ------------------------------------------------------------------ published trends in short
+
+// docs/validation.md's sweeps (tools/validation_sweeps.py) in short: a few
+// points of each, on shorter feeds, asserting the trends the model
+// reproduces. Where it does not (fines separate at least as well as
+// 0.6-1.2 mm; the copper recovery does not grow with the voltage; the copper
+// landing does not widen with the feed rate at 70 rpm), docs/validation.md
+// says why and nothing is asserted.
+
+// A run of scenes/validation/ces_pcb_sweep.yaml fed for 0.1 s (about 160
+// flakes, 13 of them copper) to a fixed end, as the sweeps measure it: in %
+// of the mass fed of each material, particles still on the drum included.
+struct Split {
+  double efficiency = 0.0;  // copper into the conductor product + FR-4 into the non-conductor - 100
+  double copper_to_middling = 0.0, fr4_to_conductor = 0.0, middling = 0.0;
+};
+
+using Overrides = std::vector<std::pair<std::string, std::string>>;
+
+Split split(Overrides overrides, const std::string& end, const std::string& name) {
+  overrides.insert(overrides.begin(), {{"feeds.nozzle.duration", "0.1 s"}, {"time.end", end}});
+  const fs::path dir = run_scene(load(kScenes + "validation/ces_pcb_sweep.yaml", overrides), name);
+  const auto fed = nlohmann::json::parse(read_text(dir / "summary.json"))["balance"]["materials"];
+  const double cu = fed["copper"]["fed"]["mass_kg"], fr4 = fed["fr4"]["fed"]["mass_kg"];
+  const std::vector<Landing> all = landings(dir);
+  Split s;
+  s.efficiency = 100 * (mass(all, "copper", "conductor") / cu +
+                        mass(all, "fr4", "nonconductor") / fr4 - 1);
+  s.copper_to_middling = 100 * mass(all, "copper", "middling") / cu;
+  s.fr4_to_conductor = 100 * mass(all, "fr4", "conductor") / fr4;
+  s.middling = 100 * (mass(all, "copper", "middling") + mass(all, "fr4", "middling")) / (cu + fr4);
+  std::printf("[ trends ] %s: E %.1f %%, copper to the middling %.1f %%, FR-4 to the conductor "
+              "%.1f %%, middling %.1f %% of the feed\n",
+              name.c_str(), s.efficiency, s.copper_to_middling, s.fr4_to_conductor, s.middling);
+  return s;
+}
+
+// The drum, the brush and the belt (at the drum's surface speed) together.
+Overrides drum_speed(const std::string& rpm, const std::string& belt) {
+  return {{"bodies.drum.motion.rotation.speed", rpm},
+          {"bodies.brush.motion.rotation.speed", rpm},
+          {"feeds.nozzle.velocity.0", belt}};
+}
+
+// Three published trends at once, sharing the scene as written (70 rpm,
+// 35 kV, the measured flakes) as the reference point:
+//  - drum speed: separation good near 70 rpm and failing on both sides
+//    (Li et al., critical rotational speed model): at 30 rpm the copper is
+//    not thrown clear and lands in the middling; at 130 rpm the FR-4 leaves
+//    the roll before its image pull holds it and lands in the conductor
+//    product;
+//  - voltage: less middling and better separation at 35 kV than at 20 kV
+//    (Wu, Li & Xu 2008);
+//  - size: the 0.6-1.2 mm sieve class separates better than the coarser
+//    measured flakes, 1.7-4.8 mm (Li, Xu & Zhou 2007).
+// Measured at seeds 1-6: E 82.8-89.8 % at the reference point; 30 rpm E
+// -1.6 to -0.6 %, all the copper in the middling; 130 rpm E 0-2.0 %, 98-100 %
+// of the FR-4 in the conductor product; 20 kV E 30.4-40.5 %, middling
+// 28.6-34.7 % of the feed against 7.2-11.9 %; 0.6-1.2 mm E 97.6-100 %.
+// Tolerances: E at least 60 % at the reference point, each failure side at
+// least 40 points below it with at least 80 % of the misplaced material
+// where the mechanism puts it, 20 kV at least 20 points below and with at
+// least 10 points more middling, 0.6-1.2 mm at least 5 points above. The
+// ends leave every particle time to be collected (30 rpm: three quarters
+// of a turn to the brush); one cycling under the brush's nip counts as
+// misplaced. About 20 s of one core's time.
+TEST(SeparatorScene, SeparationFollowsDrumSpeedVoltageAndSize) {
+  const Split reference = split({}, "1.6 s", "reference");
+  const Split slow = split(drum_speed("30 rpm", "0.5 m/s"), "2.5 s", "30 rpm");
+  const Split fast = split(drum_speed("130 rpm", "2.18 m/s"), "1.0 s", "130 rpm");
+  const Split low_voltage = split({{"electrostatics.electrodes.electrode.voltage", "-20 kV"},
+                                   {"electrostatics.electrodes.wire.voltage", "-20 kV"}},
+                                  "1.6 s", "20 kV");
+  // tools/validation_sweeps.py's 0.6-1.2 mm class: widths uniform over it,
+  // thicknesses the measured laws scaled by its mid width (0.85 mm) over the
+  // measured median widths, 1500 flakes a second.
+  const Split sieved = split(
+      {{"feeds.nozzle.rate", "1500 /s"},
+       {"feeds.nozzle.mix.0.width", "{uniform: {min: 0.6 mm, max: 1.2 mm}}"},
+       {"feeds.nozzle.mix.0.thickness",
+        "{lognormal: {median: 0.168 mm, sigma: 0.61, min: 0.0439 mm, max: 0.349 mm}}"},
+       {"feeds.nozzle.mix.1.width", "{uniform: {min: 0.6 mm, max: 1.2 mm}}"},
+       {"feeds.nozzle.mix.1.thickness",
+        "{lognormal: {median: 0.131 mm, sigma: 0.67, min: 0.0226 mm, max: 0.329 mm}}"}},
+      "1.6 s", "0.6-1.2 mm");
+
+  EXPECT_GE(reference.efficiency, 60.0);
+  EXPECT_LE(slow.efficiency, reference.efficiency - 40.0);
+  EXPECT_GE(slow.copper_to_middling, 80.0);
+  EXPECT_LE(fast.efficiency, reference.efficiency - 40.0);
+  EXPECT_GE(fast.fr4_to_conductor, 80.0);
+  EXPECT_LE(low_voltage.efficiency, reference.efficiency - 20.0);
+  EXPECT_GE(low_voltage.middling, reference.middling + 10.0);
+  EXPECT_GE(sieved.efficiency, reference.efficiency + 5.0);
+}
+
 // Quantile p of x, linear between order statistics (numpy's default).
 double quantile(std::vector<double> x, double p) {
   std::sort(x.begin(), x.end());
@@ -366,24 +463,6 @@ double quantile(std::vector<double> x, double p) {
 // The spread of a landing distribution: the range holding its middle 90 %.
 double range_5_95(const std::vector<double>& x) {
   return quantile(x, 0.95) - quantile(x, 0.05);
-}
-
-double standard_deviation(const std::vector<double>& x) {
-  double mean = 0.0, var = 0.0;
-  for (double v : x) mean += v / double(x.size());
-  for (double v : x) var += (v - mean) * (v - mean) / double(x.size() - 1);
-  return std::sqrt(var);
-}
-
-// Bootstrap standard error of range_5_95 (1000 resamples, fixed stream).
-double range_5_95_se(const std::vector<double>& x) {
-  std::mt19937_64 rng(20261201);
-  std::vector<double> values, sample(x.size());
-  for (int b = 0; b < 1000; ++b) {
-    for (double& s : sample) s = x[rng() % x.size()];
-    values.push_back(range_5_95(sample));
-  }
-  return standard_deviation(values);
 }
 
 // The share of x landing more than `gap` short of the median of x, with its
@@ -401,84 +480,65 @@ Share short_share(const std::vector<double>& x, double gap) {
   return {k / n, std::sqrt(p * (1.0 - p) / n)};
 }
 
-// The seed's Figure 10 over three feed rates: the copper landing spreads
-// wider as the feed rate grows. At the seed's roll speed, 44.8 rpm, that
-// of its figure (the reference machine turns at 70 rpm, where copper
-// grains leave the roll 29 deg past the top and the low tail is wide at
-// every feed rate: 30, 10 and 13 % short at 5, 40 and 160 g/s). The feed-rate scenes drop the mix at rest
-// from a feeder's lip at the top of the drum, which must accelerate it by
-// friction; particles lying on others (friction 0.2 instead of the drum's
-// 0.5) leave the drum slower and land short, so the copper landing grows a
-// low tail (copper thrown toward the middling) as the layer thickens. The
-// scenes run as they are: a 45.5 mm lip (a quarter of the seed's outlet) at
-// 1.25, 10 and 40 g/s, the loadings per width of 5, 40 and 160 g/s through
-// the seed's outlet, for 3.0, 0.5 and 0.13 s (about 90-150 copper each).
+// The seed's Figure 10: the copper landing spreads wider as the feed rate
+// grows, on scenes/validation/ces_feedrate.yaml at the seed's roll speed,
+// 44.8 rpm, that of its figure (at 70 rpm the copper leaves the roll before
+// it is up to speed and lands wide at every rate: docs/validation.md). The
+// mix drops at rest from a feeder's lip at the top of the drum, which must
+// accelerate it by friction; particles lying on others (friction 0.2
+// instead of the drum's 0.5) leave the drum slower and land short, so the
+// copper landing grows a low tail as the layer thickens. Two of the
+// sweep's loadings: 5 g/s through the seed's outlet (a sparse layer) fed
+// for 3 s as in the sweep, and 160 g/s (an overfed roll) fed for 0.065 s
+// instead of the sweep's 0.13 s (its copper lands short as often: the
+// layer forms within the first few hundredths of a second).
 //
 // Measure: the share of the copper landing more than 20 mm short of the
-// copper median (the bulk's interquartile range is 11-15 mm at 5 and
-// 40 g/s; at 5 g/s 0-2 copper particles of 82-107 land that short), with a
-// binomial standard error. The feed rate acts on the tail, and a count in
-// the tail is the least noisy measure of it on ~100-150 copper particles:
-// the 5-95 % range has a bootstrap standard error of 6-13 mm at 40 and
-// 160 g/s (its 5 % point sits in the sparse tail), and its 40 -> 160 g/s
-// step was 0.2-2.6 standard errors over the eight seeds below.
-//
-// Asserted: the short share grows at each step (monotone, the issue's
-// point: the share of copper landing more than 20 mm short of the bulk is
-// how far the landing spreads on its low side) and from 5 to 160 g/s by
-// more than two combined standard errors, and the 5-95 % range from 5 to
-// 160 g/s by more than 20 mm and more than one combined standard error.
-// The range also grew at each step at all eight seeds, but its 40 -> 160
-// g/s step was as small as 0.2 standard errors, so it is not asserted per
-// step. Measured at seeds 1-8 (README, "Feed rate", has the table): the
-// short share grew at each step at every seed; 5 -> 40 g/s by 2.1-3.4
-// standard errors, 40 -> 160 g/s by 1.0-4.0. A change to the engine draws a
-// new sample, much as a new seed does, so no per-step bound in standard
-// errors is asserted: the order, and the size of the whole trend, are what
-// the test holds. On this engine at seed 1: 0.0, 10.4, 16.1 % (steps of 3.6
-// and 1.4 standard errors), range 23.1, 62.1, 73.0 mm. The standard
-// deviation is only printed: it follows single stray particles. Nearly all
-// the copper must have landed (at least 90 %; measured 96.7-100 %): the
-// slow particles are the tail. One core, about 2-2.5 min for the three runs.
+// copper median (the feed rate acts on the tail, and a count in the tail is
+// the least noisy measure of it on 50-100 copper particles), with a
+// binomial standard error, and the 5-95 % range. Measured at seeds 1-8:
+// 84-106 and 52-68 copper particles landed; short share 0-3.5 % and
+// 17.5-22.1 %, a rise of 2.8-4.2 combined standard errors; range 25-32 and
+// 58-107 mm, a rise of 27-79 mm (its bootstrap standard error at 160 g/s is
+// 13-38 mm, too wide to assert in standard errors). Asserted: the short
+// share rises by more than two standard errors and the range by more than
+// 20 mm; nearly all the copper lands (at least 90 %), beyond the FR-4.
+// About 25 s of one core's time.
 TEST(SeparatorScene, CopperLandingWidensWithFeedRate) {
   constexpr double kGap = 0.020;
+  struct Rate {
+    const char* loading;
+    const char *rate, *duration, *end;
+  };
   std::vector<Share> share;
-  std::vector<double> spread, spread_error;
-  for (const char* rate : {"5", "40", "160"}) {
-    SCOPED_TRACE(std::string(rate) + " g/s");
-    const Simulation sim = load(kScenes + "ces_feedrate/feed_" + rate + "gps.yaml",
-                                {{"bodies.drum.motion.rotation.speed", "44.8 rpm"},
+  std::vector<double> spread;
+  for (const Rate& r : {Rate{"5", "1.25 g/s", "3 s", "3.65 s"}, Rate{"160", "40 g/s", "0.065 s", "0.75 s"}}) {
+    SCOPED_TRACE(std::string(r.loading) + " g/s");
+    const Simulation sim = load(kScenes + "validation/ces_feedrate.yaml",
+                                {{"feeds.nozzle.rate", r.rate},
+                                 {"feeds.nozzle.duration", r.duration},
+                                 {"time.end", r.end},
+                                 {"bodies.drum.motion.rotation.speed", "44.8 rpm"},
                                  {"bodies.brush.motion.rotation.speed", "44.8 rpm"}});
-    const fs::path dir = run_scene(sim, std::string("feed_") + rate);
+    const fs::path dir = run_scene(sim, std::string("feed_") + r.loading);
     const auto summary = nlohmann::json::parse(read_text(dir / "summary.json"));
     EXPECT_TRUE(summary["balance"]["exact"].get<bool>());
     const std::vector<Landing> all = landings(dir);
     const std::vector<double> cu = positions(all, "copper"), fr4 = positions(all, "fr4");
-    ASSERT_GE(cu.size(), 60u);
+    ASSERT_GE(cu.size(), 40u);
     EXPECT_GT(median(cu) - median(fr4), 0.05);
     const int cu_fed = summary["balance"]["materials"]["copper"]["fed"]["count"];
     EXPECT_GE(double(cu.size()), 0.9 * cu_fed) << "copper still on the drum";
     share.push_back(short_share(cu, kGap));
     spread.push_back(range_5_95(cu));
-    spread_error.push_back(range_5_95_se(cu));
-    std::printf(
-        "[ feed rate ] %s g/s: %zu copper landed of %d, short by > 20 mm %.1f +- %.1f %%, "
-        "5-95 %% range %.1f +- %.1f mm, std. dev. %.1f mm\n",
-        rate, cu.size(), cu_fed, 100 * share.back().value, 100 * share.back().error,
-        1e3 * spread.back(), 1e3 * spread_error.back(), 1e3 * standard_deviation(cu));
+    std::printf("[ feed rate ] %s g/s: %zu copper landed of %d, short by > 20 mm %.1f +- %.1f %%, "
+                "5-95 %% range %.1f mm\n",
+                r.loading, cu.size(), cu_fed, 100 * share.back().value, 100 * share.back().error,
+                1e3 * spread.back());
   }
-  ASSERT_EQ(share.size(), 3u);
-  for (std::size_t i = 1; i < share.size(); ++i) {
-    SCOPED_TRACE("step " + std::to_string(i));
-    const double step = share[i].value - share[i - 1].value;
-    const double error = std::hypot(share[i].error, share[i - 1].error);
-    std::printf("[ feed rate ] step %zu: short share %+.1f %%, %.1f standard errors\n", i,
-                100 * step, step / error);
-    EXPECT_GT(step, 0.0);
-  }
-  EXPECT_GT(share[2].value - share[0].value, 2.0 * std::hypot(share[0].error, share[2].error));
-  EXPECT_GT(spread[2] - spread[0], 0.020);
-  EXPECT_GT(spread[2] - spread[0], std::hypot(spread_error[0], spread_error[2]));
+  ASSERT_EQ(share.size(), 2u);
+  EXPECT_GT(share[1].value - share[0].value, 2.0 * std::hypot(share[0].error, share[1].error));
+  EXPECT_GT(spread[1] - spread[0], 0.020);
 }
 
 }  // namespace

@@ -213,12 +213,12 @@ class ErrorTest(Case):
         self.assertRegex(str(caught.exception), r"^--set:2:1: materials\.copper\.densty: ")
 
     def test_include_paths_as_on_the_command_line(self):
-        scene = SOURCE / "scenes" / "ces_feedrate" / "feed_5gps.yaml"
+        scene = SOURCE / "scenes" / "validation" / "ces_feedrate.yaml"
         with self.assertRaises(ces_sim.SceneError) as caught:
             ces_sim.load(scene)
         self.assertIn("outside the scene's folder", str(caught.exception))
         loaded = ces_sim.load(scene, include_paths=[SOURCE / "scenes"])
-        self.assertEqual(loaded.name, "ces_feedrate_5gps")
+        self.assertEqual(loaded.name, "ces_feedrate")
 
     def test_missing_file_names_it(self):
         with self.assertRaisesRegex(ces_sim.SceneError, "nowhere.yaml"):
