@@ -399,7 +399,10 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMe
       for (std::size_t k = begin; k < end; ++k) {
         const Vec3* P =
             hashed ? previous.find(keys[k], cursor) : previous.find_at(keys[k], cursor);
-        if (!P && !hashed) missed[ch] = 1;
+        if (!P && !hashed) {
+          missed[ch] = 1;  // the chunk is looked up again, whole
+          break;
+        }
         const Frame F = frame(k);
         x[3 * k] = P ? F.n.dot(*P) : 0.0;
         x[3 * k + 1] = P ? F.t1.dot(*P) : 0.0;
@@ -408,7 +411,7 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMe
     }
   };
   pass(false);
-  if (previous.size() > 0 && std::find(missed.begin(), missed.end(), 1) != missed.end()) {
+  if (std::find(missed.begin(), missed.end(), 1) != missed.end()) {
     previous.index();
     pass(true);
   }
