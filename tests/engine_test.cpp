@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "common/parallel.hpp"
+#include "dynamics/adjacency.hpp"
 #include "dynamics/ccp.hpp"
 #include "sim/world.hpp"
 #include "feed/shapes.hpp"
@@ -955,6 +956,85 @@ TEST(Engine, EveryChunkRunsOnceAndASlowThreadsShareIsTakenOver) {
     for (std::size_t c = 0; c < kChunks; ++c) ASSERT_EQ(runs[c].load(), 1) << c << ", " << threads;
     if (threads > 1) {
       EXPECT_LT(slow_ran.load(), kChunks / threads / 2) << threads << " threads";
+    }
+  }
+  omp_set_num_threads(omp_get_num_procs());
+}
+
+// The helpers the step's formerly serial passes run on (common/parallel.hpp),
+// against their serial definitions, on 1 to 3 threads and on sizes that
+// are and are not whole blocks.
+TEST(Engine, ParallelScanSelectAndRunChunksMatchTheirSerialDefinitions) {
+  for (const int threads : {1, 2, 3}) {
+    omp_set_num_threads(threads);
+    for (const std::size_t n : {std::size_t(0), std::size_t(5), std::size_t(4096), std::size_t(30001)}) {
+      std::vector<std::uint64_t> v(n), expected(n);
+      std::uint64_t sum = 0;
+      for (std::size_t i = 0; i < n; ++i) {
+        v[i] = (i * 7919) % 13;
+        expected[i] = sum;
+        sum += v[i];
+      }
+      exclusive_scan(v);
+      EXPECT_EQ(v, expected) << n << " items, " << threads << " threads";
+      std::vector<std::uint32_t> picked, serial;
+      auto keep = [](std::size_t i) { return i % 3 == 0 || i % 7 == 1; };
+      for (std::size_t i = 0; i < n; ++i)
+        if (keep(i)) serial.push_back(std::uint32_t(i));
+      select_in_order(n, keep, picked);
+      EXPECT_EQ(picked, serial) << n << " items, " << threads << " threads";
+      // Runs of 1 to 9 equal labels: each item once, each run in one chunk.
+      std::vector<std::size_t> label(n);
+      for (std::size_t i = 1; i < n; ++i) label[i] = label[i - 1] + (i % 9 == (i / 9) % 9);
+      std::vector<std::atomic<int>> seen(n);
+      std::vector<std::atomic<std::size_t>> chunk_of(n + 1);
+      auto same = [&](std::size_t a, std::size_t b) { return label[a] == label[b]; };
+      for_each_run_chunk(n, 100, same, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) {
+          seen[i].fetch_add(1);
+          chunk_of[label[i]].store(begin);
+        }
+      });
+      for (std::size_t i = 0; i < n; ++i) {
+        ASSERT_EQ(seen[i].load(), 1) << i;
+        if (i > 0 && same(i - 1, i)) {
+          ASSERT_LE(chunk_of[label[i]].load(), i - 1) << "run cut at " << i;
+        }
+      }
+    }
+  }
+  omp_set_num_threads(omp_get_num_procs());
+}
+
+// The body -> contact lists, built by shares of the contacts in parallel,
+// are each body's contacts in contact order whatever the thread count;
+// bodies not listed (infinite mass) get none.
+TEST(Engine, ContactAdjacencyIsEachBodysContactsInOrderOnAnyThreads) {
+  const std::size_t bodies = 1000, contacts = 20000;
+  std::vector<std::int32_t> a(contacts), b(contacts);
+  std::uint64_t state = 12345;
+  auto next = [&] { return state = state * 6364136223846793005ULL + 1442695040888963407ULL; };
+  for (std::size_t k = 0; k < contacts; ++k) {
+    a[k] = std::int32_t(next() >> 33) % std::int32_t(bodies);
+    b[k] = std::int32_t(next() >> 33) % std::int32_t(bodies);
+  }
+  auto listed = [](std::int32_t i) { return i % 10 != 0; };
+  std::vector<std::vector<std::uint32_t>> expected(bodies);
+  for (std::size_t k = 0; k < contacts; ++k) {
+    if (listed(a[k])) expected[std::size_t(a[k])].push_back(std::uint32_t(k << 1));
+    if (listed(b[k])) expected[std::size_t(b[k])].push_back(std::uint32_t(k << 1 | 1));
+  }
+  for (const int threads : {1, 2, 3}) {
+    omp_set_num_threads(threads);
+    ContactAdjacency adj;
+    for (int round = 0; round < 2; ++round) {  // again on the kept scratch
+      adj.build(a, b, bodies, listed);
+      ASSERT_EQ(adj.offset.size(), bodies + 1);
+      for (std::size_t i = 0; i < bodies; ++i) {
+        const std::vector<std::uint32_t> got(adj.entry.begin() + adj.offset[i],
+                                             adj.entry.begin() + adj.offset[i + 1]);
+        ASSERT_EQ(got, expected[i]) << "body " << i << ", " << threads << " threads";
+      }
     }
   }
   omp_set_num_threads(omp_get_num_procs());

@@ -689,3 +689,34 @@ TEST(ContactMemory, FindsWhatWasStoredAndNothingElse) {
     for (const auto& entry : expected) earlier.push_back(entry.first);
   }
 }
+
+// The hash table built on the threads (ContactMemory::index) finds what a
+// lookup from the wrong place finds, and of a repeated key the value stored
+// first, as a table filled in order would: 40,000 keys of which every
+// fifth repeats an earlier one, on 1 and 3 threads.
+TEST(ContactMemory, TableBuiltOnThreadsFindsTheFirstOfARepeatedKey) {
+  using ces::ContactKey, ces::ContactMemory, ces::Vec3;
+  std::vector<ContactKey> keys;
+  std::vector<Vec3> values;
+  for (std::uint32_t k = 0; k < 40000; ++k) {
+    const std::uint32_t source = k % 5 == 4 ? k / 2 : k;  // a repeat of an earlier key
+    keys.push_back({source % 301, source / 301, source % 19, source % 7});
+    values.emplace_back(double(k), 0.0, 0.0);
+  }
+  for (const int threads : {1, 3}) {
+    omp_set_num_threads(threads);
+    ContactMemory memory;
+    std::vector<Vec3> given = values;
+    memory.assign(keys, given);
+    memory.index();
+    std::map<ContactKey, std::size_t> first;  // each key's first stored copy
+    for (std::size_t k = 0; k < keys.size(); ++k) first.emplace(keys[k], k);
+    ASSERT_LT(first.size(), keys.size());
+    for (std::size_t k = 0; k < keys.size(); ++k) {
+      const Vec3* found = memory.find(keys[k]);
+      ASSERT_NE(found, nullptr) << k;
+      ASSERT_EQ(found->x(), double(first.at(keys[k]))) << k << ", " << threads << " threads";
+    }
+  }
+  omp_set_num_threads(omp_get_num_procs());
+}

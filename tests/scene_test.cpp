@@ -647,6 +647,58 @@ TEST(SceneOverrides, BadValuesPointAtTheOverride) {
             "--set:2:1: time.step: '2 kg' is a mass (kg), expected a time (s), e.g. \"1 ms\"");
 }
 
+// ------------------------------------------------------------------ set:
+
+// A machine fragment made wider by the scene that includes it: the merge
+// cannot change an item of its bodies list, set can; --set still wins.
+TEST(SceneSet, ChangesAnIncludedListItemBeforeTheCommandLine) {
+  TempDir dir;
+  dir.write("machine.yaml",
+            "materials: {steel: {friction: 0.5}}\n"
+            "bodies:\n"
+            "  - {name: drum, geometry: {cylinder: {radius: 0.16, length: 0.3}}, material: steel}\n"
+            "domain: {box: {min: [-1, -1, -0.2], max: [1, 1, 0.2]}}\n");
+  const std::string scene =
+      dir.write("wide.yaml", std::string(kMinimal) +
+                                 "include: machine.yaml\n"
+                                 "set:\n"
+                                 "  bodies.drum.geometry.cylinder.length: 1 m\n"
+                                 "  domain.box.min: [-1, -1, -0.6]\n"
+                                 "  solver.max_iterations: 9\n");
+  const Simulation sim = load(scene);
+  const auto& drum = std::get<geo::Cylinder>(sim.model->bodies.at(0).shape);
+  EXPECT_EQ(2.0 * drum.half_length, 1.0);
+  EXPECT_EQ(sim.domain->min, Vec3(-1, -1, -0.6));  // replaced, not concatenated
+  EXPECT_EQ(sim.model->solver.max_iterations, 9);
+  EXPECT_EQ(sim.resolved_yaml.find("set:"), std::string::npos);
+  EXPECT_EQ(load(scene, sets({{"solver.max_iterations", "4"}})).model->solver.max_iterations, 4);
+}
+
+TEST(SceneSet, BadPathsNameTheFileAndLine) {
+  TempDir dir;
+  const std::string scene = dir.write(
+      "s.yaml", std::string(kMinimal) +
+                    "set:\n"
+                    "  bodies.nope.material: copper\n"
+                    "  time.step.unit: ms\n"
+                    "  include: a.yaml\n"
+                    "materials: {steel: {}}\n"
+                    "bodies: [{name: wall, geometry: {box: {size: [1, 1, 1]}}, material: steel}]\n");
+  const auto errors = load_errors(scene);
+  ASSERT_EQ(errors.size(), 3u) << all(errors);
+  EXPECT_EQ(errors[0].line, 4);
+  EXPECT_EQ(errors[0].path, "set.bodies.nope.material");
+  EXPECT_NE(errors[0].message.find("invalid override path"), std::string::npos);
+  EXPECT_EQ(errors[1].line, 5);
+  EXPECT_NE(errors[1].message.find("'time.step' is '1 ms', not a mapping or a list"),
+            std::string::npos);
+  EXPECT_EQ(errors[2].line, 6);
+  EXPECT_NE(errors[2].message.find("'include' cannot be overridden"), std::string::npos);
+  const auto list = load_errors(dir.write("l.yaml", std::string(kMinimal) + "set: [1, 2]\n"));
+  ASSERT_EQ(list.size(), 1u) << all(list);
+  EXPECT_NE(list[0].message.find("expected a mapping of key paths to values"), std::string::npos);
+}
+
 // ------------------------------------------------------------------ compile only what is used
 
 TEST(SceneComponents, JointsMotorsAndDynamicBodies) {

@@ -228,9 +228,11 @@ void Collider::narrowphase(const Model& model, const Particles& p, const Bodies&
   // World centres of every particle's spheres, once per step: the pair loop
   // below visits each of them once per neighbour.
   sphere_first_.resize(n + 1);
-  sphere_first_[0] = 0;
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
   for (std::size_t i = 0; i < n; ++i)
-    sphere_first_[i + 1] = sphere_first_[i] + model.shapes[std::size_t(p.shape[i])].centers.size();
+    sphere_first_[i] = model.shapes[std::size_t(p.shape[i])].centers.size();
+  sphere_first_[n] = 0;
+  exclusive_scan(sphere_first_);
   sphere_centre_.resize(sphere_first_[n]);
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(n); ++s) {

@@ -1,9 +1,11 @@
 // When the engine's loops fork threads.
 #pragma once
+#include <algorithm>
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include <omp.h>
 
@@ -76,6 +78,70 @@ void for_each_chunk(std::size_t count, bool parallel, Fn&& fn) {
     // The others' leftovers; a share whose thread the team lacks too.
     for (int k = 1; k < threads; ++k)
       while (take(shares[(t + k) % threads], false, c)) fn(c);
+  }
+}
+
+// fn(begin, end) over [0, n) in fixed chunks of `chunk` items, on the
+// threads, each chunk's bounds moved forward past any run they would cut
+// (items i - 1 and i with same(i - 1, i) are of one run): every run is in
+// one chunk, so a run's items may write to one place without a race, and
+// the chunks do not depend on the threads.
+template <class Same, class Fn>
+void for_each_run_chunk(std::size_t n, std::size_t chunk, Same same, Fn fn) {
+  const std::size_t chunks = (n + chunk - 1) / chunk;
+  auto bound = [&](std::size_t c) {
+    std::size_t i = std::min(n, c * chunk);
+    while (i > 0 && i < n && same(i - 1, i)) ++i;
+    return i;
+  };
+#pragma omp parallel for schedule(static) if (chunks > 1)
+  for (std::size_t c = 0; c < chunks; ++c) fn(bound(c), bound(c + 1));
+}
+
+// v[i] becomes v[0] + ... + v[i - 1] (v[0] becomes 0), in parallel over
+// fixed blocks: integers, so the sums are exact whatever the threads.
+template <class T>
+void exclusive_scan(std::vector<T>& v) {
+  constexpr std::size_t kBlock = 4096;
+  const std::size_t n = v.size(), blocks = (n + kBlock - 1) / kBlock;
+  std::vector<T> first(blocks + 1, T{});
+#pragma omp parallel for schedule(static) if (blocks > 1)
+  for (std::size_t b = 0; b < blocks; ++b) {
+    T sum{};
+    for (std::size_t i = b * kBlock; i < std::min(n, (b + 1) * kBlock); ++i) sum += v[i];
+    first[b + 1] = sum;
+  }
+  for (std::size_t b = 0; b < blocks; ++b) first[b + 1] += first[b];
+#pragma omp parallel for schedule(static) if (blocks > 1)
+  for (std::size_t b = 0; b < blocks; ++b) {
+    T sum = first[b];
+    for (std::size_t i = b * kBlock; i < std::min(n, (b + 1) * kBlock); ++i) {
+      const T x = v[i];
+      v[i] = sum;
+      sum += x;
+    }
+  }
+}
+
+// out = the i in [0, n) with keep(i), in increasing order, found in
+// parallel over fixed chunks.
+template <class Keep>
+void select_in_order(std::size_t n, Keep keep, std::vector<std::uint32_t>& out) {
+  constexpr std::size_t kBlock = 4096;
+  const std::size_t blocks = (n + kBlock - 1) / kBlock;
+  std::vector<std::uint32_t> first(blocks + 1, 0);
+  auto block = [&](std::size_t b, auto&& fn) {
+    for (std::size_t i = b * kBlock; i < std::min(n, (b + 1) * kBlock); ++i)
+      if (keep(i)) fn(std::uint32_t(i));
+  };
+#pragma omp parallel for schedule(static) if (blocks > 1)
+  for (std::size_t b = 0; b < blocks; ++b) block(b, [&](std::uint32_t) { ++first[b]; });
+  exclusive_scan(first);
+  out.resize(first[blocks]);
+#pragma omp parallel for schedule(static) if (blocks > 1)
+  for (std::size_t b = 0; b < blocks; ++b) {
+    std::uint32_t at = first[b];
+    block(b, [&](std::uint32_t i) { out[at++] = i; });
   }
 }
 

@@ -59,17 +59,26 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   bodies_ = &B;
   rows_ = rows;
   const std::size_t nc = c.size();
-  a_ = c.body_a;
-  b_ = c.body_b;
-  // Padded to whole blocks of the kernel (apgd_step) with zeros.
+  a_.resize(nc);
+  b_.resize(nc);
+  // Padded to whole blocks of the kernel (apgd_step) with zeros. Every
+  // contact's own numbers are written below, in parallel: only the
+  // padding is zeroed here.
   const std::size_t padded = (nc + kLanes - 1) / kLanes * kLanes;
-  frame_.assign(padded / kLanes * kFrameBlock, 0.0f);
-  lever_.assign(6 * padded + 1, 0.0f);
-  bias_.assign(padded, 0.0);
+  frame_.resize(padded / kLanes * kFrameBlock);
+  lever_.resize(6 * padded + 1);
+  bias_.resize(padded);
   gap_ = c.gap;
   radius_ = c.radius;
   step_ = h;
-  metric_.assign(padded / kLanes * kMetricBlock, 0.0f);
+  metric_.resize(padded / kLanes * kMetricBlock);
+  for (std::size_t k = nc; k < padded; ++k) {
+    const std::size_t lane = k % kLanes;
+    for (std::size_t j = 0; j < 4; ++j) frame_[k / kLanes * kFrameBlock + j * kLanes + lane] = 0;
+    for (std::size_t j = 0; j < 2; ++j) metric_[k / kLanes * kMetricBlock + j * kLanes + lane] = 0;
+    bias_[k] = 0.0;
+  }
+  std::fill(lever_.begin() + std::ptrdiff_t(6 * nc), lever_.end(), 0.0f);
   tangent_.resize(2 * nc);
   // World rows for scatter_bodies, and a spare: it loads each contact's
   // impulse as a four-number vector.
@@ -89,6 +98,8 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
 #pragma omp parallel for schedule(static) reduction(max : diag_max) if (std::ptrdiff_t(nc) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(nc); ++s) {
     const auto k = std::size_t(s);
+    a_[k] = c.body_a[k];
+    b_[k] = c.body_b[k];
     const Vec3& n = c.normal[k];
     const Vec3 ra = c.point[k] - B.x[std::size_t(a_[k])];
     const Vec3 rb = c.point[k] - B.x[std::size_t(b_[k])];
@@ -393,21 +404,40 @@ void CcpProblem::make_tangents(std::size_t k) {
 
 void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMemory& previous,
                             ConstSpan prev_rows, Span x) const {
-  // In fixed chunks, each with a cursor of its own (ContactMemory::find),
-  // in parallel: what a contact finds does not depend on them.
+  // In fixed chunks, each with a cursor of its own, in parallel: what a
+  // contact finds does not depend on them. First where the last step's
+  // order would have each key (ContactMemory::find_at); the chunks with a
+  // key found elsewhere or not at all again by the hash table, built on
+  // the threads between the two passes only if one is needed.
   const std::size_t nc = keys.size(), chunk = std::size_t(kReduceChunk);
-  const auto chunks = std::ptrdiff_t((nc + chunk - 1) / chunk);
+  const std::size_t chunks = (nc + chunk - 1) / chunk;
+  static thread_local std::vector<std::uint8_t> missed_buffer;
+  std::vector<std::uint8_t>& missed = missed_buffer;  // (named outside the region)
+  missed.assign(chunks, 0);
+  auto pass = [&](bool hashed) {
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(nc) > kParallelMin)
-  for (std::ptrdiff_t ch = 0; ch < chunks; ++ch) {
-    const std::size_t begin = std::size_t(ch) * chunk, end = std::min(nc, begin + chunk);
-    std::size_t cursor = begin;  // where the last step's order would have it
-    for (std::size_t k = begin; k < end; ++k) {
-      const Vec3* P = previous.find(keys[k], cursor);
-      const Frame F = frame(k);
-      x[3 * k] = P ? F.n.dot(*P) : 0.0;
-      x[3 * k + 1] = P ? F.t1.dot(*P) : 0.0;
-      x[3 * k + 2] = P ? F.t2.dot(*P) : 0.0;
+    for (std::size_t ch = 0; ch < chunks; ++ch) {
+      if (hashed && !missed[ch]) continue;
+      const std::size_t begin = ch * chunk, end = std::min(nc, begin + chunk);
+      std::size_t cursor = begin;
+      for (std::size_t k = begin; k < end; ++k) {
+        const Vec3* P =
+            hashed ? previous.find(keys[k], cursor) : previous.find_at(keys[k], cursor);
+        if (!P && !hashed) {
+          missed[ch] = 1;  // the chunk is looked up again, whole
+          break;
+        }
+        const Frame F = frame(k);
+        x[3 * k] = P ? F.n.dot(*P) : 0.0;
+        x[3 * k + 1] = P ? F.t1.dot(*P) : 0.0;
+        x[3 * k + 2] = P ? F.t2.dot(*P) : 0.0;
+      }
     }
+  };
+  pass(false);
+  if (std::find(missed.begin(), missed.end(), 1) != missed.end()) {
+    previous.index();
+    pass(true);
   }
   const std::size_t base = 3 * nc;
   std::fill(x.begin() + std::ptrdiff_t(base), x.end(), 0.0);

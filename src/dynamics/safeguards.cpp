@@ -134,21 +134,27 @@ WallGuard guard_wall_rows(const CcpProblem& p, Span x, std::vector<Vec3>& v, std
 
 // The same for every contact of a flagged body, whatever its partner (the
 // impulse shared by both bodies), in at most `sweeps` Gauss-Seidel sweeps
-// over all contacts in order: after the spin limit changed their spins.
-// v, w need not be those of x. Returns the rows corrected.
+// over those contacts in order: after the spin limit changed their spins.
+// The contacts are picked out first, in parallel (`rows`: scratch), and
+// only they are swept. v, w need not be those of x. Returns the rows
+// corrected.
 std::size_t guard_body_rows(const CcpProblem& p, Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
                             const std::vector<std::uint8_t>& flagged, double tolerance, int sweeps,
-                            const std::vector<std::uint8_t>* locked) {
+                            const std::vector<std::uint8_t>* locked,
+                            std::vector<std::uint32_t>& rows) {
   const SolverBodies& B = p.bodies();
   // A locked body takes the correction in translation only (its turn, the
   // angular terms, left as they are).
   auto turns = [&](std::size_t i) { return locked == nullptr || !(*locked)[i]; };
+  auto of_flagged = [&](std::size_t k) {
+    return flagged[std::size_t(p.body_a(k))] || flagged[std::size_t(p.body_b(k))];
+  };
+  select_in_order(p.contact_count(), of_flagged, rows);
   std::size_t corrections = 0;
   for (int sweep = 0; sweep < sweeps; ++sweep) {
     std::size_t made = 0;
-    for (std::size_t k = 0; k < p.contact_count(); ++k) {
+    for (const std::uint32_t k : rows) {
       const auto a = std::size_t(p.body_a(k)), b = std::size_t(p.body_b(k));
-      if (!flagged[a] && !flagged[b]) continue;
       const Vec3 n = p.normal(k), ra = p.lever_a(k), rb = p.lever_b(k);
       const double deficit = -p.bias(k) - n.dot(p.relative_velocity(k, v, w));
       if (!(deficit > tolerance)) continue;  // (also skips a NaN)
@@ -357,33 +363,32 @@ void limit_spin(Guard& c, StepStats& stats) {
   SafeguardScratch& s = c.scratch;
   if (!s.has_clumps) return;
   const Particles& p = c.particles;
-  const Contacts& contacts = c.contacts;
-  const std::size_t np = p.size();
-  s.touching.assign(np, 0);
-  for (std::size_t k = 0; k < contacts.size(); ++k)
-    for (const std::int32_t i : {contacts.body_a[k], contacts.body_b[k]})
-      if (std::size_t(i) < np) s.touching[std::size_t(i)] = 1;
+  const ContactAdjacency& adj = c.problem.adjacency();  // every particle's contacts
   std::vector<Vec3>& w = c.bodies.w;
   s.capped.assign(c.bodies.inv_mass.size(), 0);
-  for (std::size_t i = 0; i < np; ++i) {
-    if (!s.touching[i]) continue;
-    const double limit = s.max_turn[std::size_t(p.shape[i])] / c.model.step;
-    const double spin = w[i].norm();
-    if (!(spin > limit)) continue;
-    w[i] *= limit / spin;
-    s.capped[i] = 1;
-    ++stats.spin_limited;
-  }
-  if (stats.spin_limited == 0) return;
-  // Their partners move too: the walls' rows of everyone last.
   // The guards after the cap move clumps in contact in translation only: a
   // normal impulse on a sphere at the rim of a flake would spin it past the
   // cap again, several times over at a large step, and into the drum.
   s.locked.assign(c.bodies.inv_mass.size(), 0);
-  for (std::size_t i = 0; i < np; ++i)
-    s.locked[i] = s.touching[i] && std::isfinite(s.max_turn[std::size_t(p.shape[i])]);
+  std::size_t capped = 0;
+  const auto np = std::ptrdiff_t(p.size());
+#pragma omp parallel for schedule(static) reduction(+ : capped) if (np > kParallelMin)
+  for (std::ptrdiff_t si = 0; si < np; ++si) {
+    const auto i = std::size_t(si);
+    if (adj.offset[i] == adj.offset[i + 1]) continue;  // no contact
+    const double max_turn = s.max_turn[std::size_t(p.shape[i])];
+    s.locked[i] = std::isfinite(max_turn);
+    const double limit = max_turn / c.model.step, spin = w[i].norm();
+    if (!(spin > limit)) continue;
+    w[i] *= limit / spin;
+    s.capped[i] = 1;
+    ++capped;
+  }
+  stats.spin_limited += capped;
+  if (capped == 0) return;
+  // Their partners move too: the walls' rows of everyone last.
   stats.wall_corrections += guard_body_rows(c.problem, c.gamma, c.bodies.v, w, s.capped,
-                                            c.tolerance, kGuardSweeps, &s.locked);
+                                            c.tolerance, kGuardSweeps, &s.locked, s.guarded);
   guard_walls(c, stats, &s.locked);
 }
 

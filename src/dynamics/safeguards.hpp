@@ -26,7 +26,7 @@ class SafeguardScratch {
  public:
   std::vector<double> max_turn;  // per shape: rad per step in contact
   bool has_clumps = false;
-  std::vector<std::uint8_t> touching;  // per particle: has a contact this step
+  std::vector<std::uint32_t> guarded;  // contacts of capped clumps, in order
   std::vector<std::uint8_t> capped;    // per solver body: spin capped this step
   std::vector<std::uint8_t> locked;    // per solver body: guarded in translation only
   std::vector<Vec3> base_v, base_w;    // the velocities of the joints' impulses

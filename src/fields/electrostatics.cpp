@@ -55,6 +55,10 @@ double touch_tolerance(const Contacts& c, std::size_t k, const Bodies& bodies, s
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+// Contacts per chunk of find_touches; fixed, so the chunks do not depend on
+// the threads.
+constexpr std::size_t kTouchChunk = 4096;
+
 // Flat shapes (ShapeElectrics): at least this many thicknesses wide both
 // ways across their thinnest principal axis, so t/a <= 2/1.5 = 1.33, inside
 // the Laplace table of the flake laws (fields/charge.cpp, to t/a = 2). The
@@ -253,7 +257,9 @@ void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
 // contact in the list whether touching or not (within the collision
 // envelope: a quarter of the sphere radius plus one step's travel), for
 // the image force, which does not stop when a particle hops off by a
-// fraction of a millimetre.
+// fraction of a millimetre. In parallel: a particle's contacts with one
+// body follow each other in the list (Collider::narrowphase), so each
+// particle's entries are written by the one chunk that holds that run.
 void ElectrostaticsStage::find_touches(const Contacts& c, const Bodies& bodies, const Particles& p, double h) {
   const std::size_t np = p.size();
   drum_contact_.assign(np, -1);
@@ -261,22 +267,34 @@ void ElectrostaticsStage::find_touches(const Contacts& c, const Bodies& bodies, 
   brush_touch_.assign(np, 0);
   const int drum = int(np) + spec_.drum_body;
   const int brush = spec_.brush_body ? int(np) + *spec_.brush_body : -1;
-  for (std::size_t k = 0; k < c.size(); ++k) {
-    const int body = c.body_a[k];
-    if (body != drum && body != brush) continue;
-    const auto i = std::size_t(c.body_b[k]);
-    if (body == drum) {
-      std::int32_t& near = near_contact_[i];
-      if (near < 0 || c.gap[k] < c.gap[std::size_t(near)]) near = std::int32_t(k);
+  auto same_pair = [&](std::size_t k, std::size_t l) {
+    return c.body_a[k] == c.body_a[l] && c.body_b[k] == c.body_b[l];
+  };
+  for_each_run_chunk(c.size(), kTouchChunk, same_pair, [&](std::size_t begin, std::size_t end) {
+    for (std::size_t k = begin; k < end; ++k) {
+      const int body = c.body_a[k];
+      if (body == drum || body == brush) touch(c, k, body == drum, bodies, p, h);
     }
-    if (c.gap[k] > touch_tolerance(c, k, bodies, std::size_t(body) - np, p, i, h)) continue;
-    if (body == brush) {
-      brush_touch_[i] = 1;
-      continue;
-    }
-    std::int32_t& best = drum_contact_[i];
-    if (best < 0 || c.gap[k] < c.gap[std::size_t(best)]) best = std::int32_t(k);
+  });
+}
+
+// Contact k of particle c.body_b[k] with the drum or the brush, into its
+// touches.
+void ElectrostaticsStage::touch(const Contacts& c, std::size_t k, bool on_drum,
+                                const Bodies& bodies, const Particles& p, double h) {
+  const auto i = std::size_t(c.body_b[k]);
+  if (on_drum) {
+    std::int32_t& near = near_contact_[i];
+    if (near < 0 || c.gap[k] < c.gap[std::size_t(near)]) near = std::int32_t(k);
   }
+  const std::size_t body = std::size_t(c.body_a[k]) - p.size();
+  if (c.gap[k] > touch_tolerance(c, k, bodies, body, p, i, h)) return;
+  if (!on_drum) {
+    brush_touch_[i] = 1;
+    return;
+  }
+  std::int32_t& best = drum_contact_[i];
+  if (best < 0 || c.gap[k] < c.gap[std::size_t(best)]) best = std::int32_t(k);
 }
 
 const ElectricalMaterial& ElectrostaticsStage::material(const Particles& p, std::size_t i) const {

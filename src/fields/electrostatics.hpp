@@ -166,6 +166,8 @@ class ElectrostaticsStage {
 
  private:
   void find_touches(const Contacts& c, const Bodies& bodies, const Particles& p, double h);
+  void touch(const Contacts& c, std::size_t k, bool on_drum, const Bodies& bodies,
+             const Particles& p, double h);
   const ElectricalMaterial& material(const Particles& p, std::size_t i) const;
   Site site(const Particles& p, std::size_t i, const Contacts& c) const;
   void update(Particles& p, std::size_t i, const Contacts& c, double h) const;

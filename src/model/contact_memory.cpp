@@ -24,6 +24,11 @@ void ContactMemory::assign(const std::vector<ContactKey>& keys, std::vector<Vec3
   built_.store(false, std::memory_order_release);
 }
 
+// Linear probing filled in parallel: a thread claims the first empty slot
+// of its key's probe sequence. Slots only go from empty to full, so every
+// key ends up reachable from its home past full slots only, and a lookup
+// finds the same value whatever the layout. Of a repeated key the slot
+// keeps the first stored (a smaller index wins), as a serial fill would.
 void ContactMemory::build_table() const {
   std::size_t capacity = 16;
   while (capacity < 2 * keys_.size()) capacity *= 2;
@@ -32,20 +37,45 @@ void ContactMemory::build_table() const {
   // The slots are written at random: each is prefetched kAhead keys before
   // its key is placed, so that the cache misses overlap instead of each
   // probe waiting for its own.
-  constexpr std::size_t kAhead = 16;
-  std::array<std::size_t, kAhead> ahead;
-  const std::size_t n = keys_.size();
-  auto prefetch = [&](std::size_t k) {
-    ahead[k % kAhead] = home(keys_[k]);
-    __builtin_prefetch(&slots_[ahead[k % kAhead]], 1);
-  };
-  for (std::size_t k = 0; k < std::min(n, kAhead); ++k) prefetch(k);
-  for (std::size_t k = 0; k < n; ++k) {
-    std::size_t slot = ahead[k % kAhead];
-    if (k + kAhead < n) prefetch(k + kAhead);
-    while (slots_[slot] != kEmpty) slot = (slot + 1) & mask_;
-    slots_[slot] = std::uint32_t(k);
+  constexpr std::size_t kAhead = 16, kBlock = 4096;
+  const std::size_t n = keys_.size(), blocks = (n + kBlock - 1) / kBlock;
+#pragma omp parallel for schedule(static) if (blocks > 1)
+  for (std::size_t b = 0; b < blocks; ++b) {
+    std::array<std::size_t, kAhead> ahead;
+    const std::size_t begin = b * kBlock, end = std::min(n, begin + kBlock);
+    auto prefetch = [&](std::size_t k) {
+      ahead[k % kAhead] = home(keys_[k]);
+      __builtin_prefetch(&slots_[ahead[k % kAhead]], 1);
+    };
+    for (std::size_t k = begin; k < std::min(end, begin + kAhead); ++k) prefetch(k);
+    for (std::size_t k = begin; k < end; ++k) {
+      const std::size_t slot = ahead[k % kAhead];
+      if (k + kAhead < end) prefetch(k + kAhead);
+      place(slot, std::uint32_t(k));
+    }
   }
+}
+
+void ContactMemory::place(std::size_t slot, std::uint32_t k) const {
+  for (;;) {
+    std::atomic_ref<std::uint32_t> ref(slots_[slot]);
+    std::uint32_t held = ref.load(std::memory_order_relaxed);
+    const bool empty = held == kEmpty;
+    if (!empty && !(keys_[held] == keys_[k])) {
+      slot = (slot + 1) & mask_;
+      continue;
+    }
+    if (!empty && held < k) return;  // the same key, stored first
+    if (ref.compare_exchange_strong(held, k, std::memory_order_relaxed)) return;
+  }
+}
+
+void ContactMemory::index() const {
+  if (built_.load(std::memory_order_acquire) || keys_.empty()) return;
+  const std::lock_guard<std::mutex> lock(build_);
+  if (built_.load(std::memory_order_relaxed)) return;
+  build_table();
+  built_.store(true, std::memory_order_release);
 }
 
 const Vec3* ContactMemory::find(const ContactKey& key) const {
@@ -53,16 +83,15 @@ const Vec3* ContactMemory::find(const ContactKey& key) const {
   return find(key, cursor);
 }
 
-const Vec3* ContactMemory::find(const ContactKey& key, std::size_t& cursor) const {
+const Vec3* ContactMemory::find_at(const ContactKey& key, std::size_t& cursor) const {
   if (cursor < keys_.size() && keys_[cursor] == key) return &values_[cursor++];
+  return nullptr;
+}
+
+const Vec3* ContactMemory::find(const ContactKey& key, std::size_t& cursor) const {
+  if (const Vec3* at = find_at(key, cursor)) return at;
   if (keys_.empty()) return nullptr;
-  if (!built_.load(std::memory_order_acquire)) {
-    const std::lock_guard<std::mutex> lock(build_);
-    if (!built_.load(std::memory_order_relaxed)) {
-      build_table();
-      built_.store(true, std::memory_order_release);
-    }
-  }
+  index();
   for (std::size_t s = home(key); slots_[s] != kEmpty; s = (s + 1) & mask_)
     if (keys_[slots_[s]] == key) {
       cursor = slots_[s] + 1;

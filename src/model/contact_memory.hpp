@@ -46,6 +46,15 @@ class ContactMemory {
   // lookups cost a cache miss each. Safe to call
   // from several threads at once.
   const Vec3* find(const ContactKey& key, std::size_t& cursor) const;
+  // The key stored at `cursor`'s value (and the cursor past it), or
+  // nullptr: the key may still be stored elsewhere (find). Never builds
+  // the table.
+  const Vec3* find_at(const ContactKey& key, std::size_t& cursor) const;
+  // Builds the hash table now, on the threads, if it is not built: for a
+  // caller about to look up keys that missed their cursors from a parallel
+  // loop, where the first miss would build it on one thread while the
+  // others wait.
+  void index() const;
   std::size_t size() const { return keys_.size(); }
   const std::vector<ContactKey>& keys() const { return keys_; }
   const std::vector<Vec3>& values() const { return values_; }
@@ -54,6 +63,9 @@ class ContactMemory {
   static constexpr std::uint32_t kEmpty = ~std::uint32_t{0};
   std::size_t home(const ContactKey& key) const;
   void build_table() const;
+  // Puts key k in the first slot from `slot` on that is empty or holds
+  // the same key stored later.
+  void place(std::size_t slot, std::uint32_t k) const;
   std::vector<ContactKey> keys_;  // in the order stored
   std::vector<Vec3> values_;
   // The hash table, made by the first lookup that misses its cursor.

@@ -263,27 +263,35 @@ std::optional<Node> load_tree_text(const std::string& text, const std::string& p
   return Includer(path, include_paths, budget, diags).load_text(text, path, {path, 0, 0});
 }
 
-void apply_override(Node& root, const std::string& key_path, const std::string& value, int ordinal,
-                    Budget& budget, Diagnostics& diags) {
-  const Mark mark{"--set", ordinal, 1};
-  const std::string shown = excerpt(key_path, limits::kPathBytes);
+namespace {
+
+// The override path's segments; nullopt: reported (at `mark`, as `shown`).
+std::optional<std::vector<std::string>> override_segments(const std::string& key_path,
+                                                          const std::string& shown,
+                                                          const Mark& mark, Diagnostics& diags) {
+  const std::string cut = excerpt(shown, limits::kPathBytes);
+  const auto fail = [&](const std::string& key, const std::string& message) {
+    diags.error(mark, key, message);
+    return std::nullopt;
+  };
   if (key_path.size() > limits::kPathBytes)
-    return diags.error(mark, shown,
-                       "a key path longer than " + std::to_string(limits::kPathBytes) +
-                           " characters, expected a shorter one");
-  const std::vector<std::string> segments = split_path(key_path);
+    return fail(cut, "a key path longer than " + std::to_string(limits::kPathBytes) +
+                         " characters, expected a shorter one");
+  std::vector<std::string> segments = split_path(key_path);
   const bool blank =
       std::any_of(segments.begin(), segments.end(), [](const auto& s) { return s.empty(); });
-  if (segments.empty() || blank)
-    return diags.error(mark, key_path, "invalid override path, expected key.path=value");
+  if (segments.empty() || blank) return fail(shown, "invalid override path, expected key.path=value");
   if (segments.size() > std::size_t(limits::kNesting))
-    return diags.error(mark, shown,
-                       "a key path of " + std::to_string(segments.size()) +
-                           " segments, expected at most " + std::to_string(limits::kNesting));
-  if (segments.front() == "include")
-    return diags.error(mark, key_path, "includes cannot be overridden, expected a scene key");
-  std::optional<Node> replacement = parse_value(value, mark, budget, diags);
-  if (!replacement) return;
+    return fail(cut, "a key path of " + std::to_string(segments.size()) +
+                         " segments, expected at most " + std::to_string(limits::kNesting));
+  if (segments.front() == "include" || segments.front() == "set")
+    return fail(shown, "'" + segments.front() + "' cannot be overridden, expected a scene key");
+  return segments;
+}
+
+// The node the path names, maps created on the way; nullptr: reported.
+Node* override_target(Node& root, const std::vector<std::string>& segments,
+                      const std::string& shown, const Mark& mark, Diagnostics& diags) {
   Node* n = &root;
   std::string walked;
   for (const std::string& s : segments) {
@@ -298,20 +306,54 @@ void apply_override(Node& root, const std::string& key_path, const std::string& 
       n = child;
     } else if (n->is_sequence()) {
       const auto index = find_item(*n, s);
-      if (!index)
-        return diags.error(mark, key_path,
-                           "invalid override path: '" + walked + "' has no item '" + excerpt(s) +
-                               "', expected an index below " + std::to_string(n->items.size()) +
-                               " or the name of an item");
+      if (!index) {
+        diags.error(mark, shown,
+                    "invalid override path: '" + walked + "' has no item '" + excerpt(s) +
+                        "', expected an index below " + std::to_string(n->items.size()) +
+                        " or the name of an item");
+        return nullptr;
+      }
       n = &n->items[*index];
     } else {
-      return diags.error(mark, key_path,
-                         "invalid override path: '" + walked + "' is " + describe(*n) +
-                             ", not a mapping or a list");
+      diags.error(mark, shown,
+                  "invalid override path: '" + walked + "' is " + describe(*n) +
+                      ", not a mapping or a list");
+      return nullptr;
     }
     walked += (walked.empty() ? "" : ".") + s;
   }
-  *n = std::move(*replacement);
+  return n;
+}
+
+}  // namespace
+
+void apply_override(Node& root, const std::string& key_path, const std::string& value, int ordinal,
+                    Budget& budget, Diagnostics& diags) {
+  const Mark mark{"--set", ordinal, 1};
+  const auto segments = override_segments(key_path, key_path, mark, diags);
+  if (!segments) return;
+  std::optional<Node> replacement = parse_value(value, mark, budget, diags);
+  if (!replacement) return;
+  if (Node* target = override_target(root, *segments, key_path, mark, diags))
+    *target = std::move(*replacement);
+}
+
+void apply_scene_set(Node& root, Diagnostics& diags) {
+  const auto at = std::find_if(root.entries.begin(), root.entries.end(),
+                               [](const Entry& e) { return e.key == "set"; });
+  if (at == root.entries.end()) return;
+  Node set = std::move(at->value);
+  root.entries.erase(at);
+  if (!set.is_map())
+    return diags.error(set.mark, "set",
+                       "got " + describe(set) + ", expected a mapping of key paths to values");
+  for (Entry& e : set.entries) {
+    const std::string shown = "set." + e.key;
+    const auto segments = override_segments(e.key, shown, e.key_mark, diags);
+    if (!segments) continue;
+    if (Node* target = override_target(root, *segments, shown, e.key_mark, diags))
+      *target = std::move(e.value);
+  }
 }
 
 std::string too_large(const std::filesystem::path& file, std::uintmax_t max_bytes) {

@@ -35,6 +35,11 @@ std::optional<Node> load_tree_text(const std::string& text, const std::string& p
 void apply_override(Node& root, const std::string& key_path, const std::string& value, int ordinal,
                     Budget& budget, Diagnostics& diags);
 
+// Applies the tree's top-level `set:` (merged from the scene and its
+// includes) and removes it: each key path, as --set takes it, gets its
+// value, in the order written. Before the command line's --set, which wins.
+void apply_scene_set(Node& root, Diagnostics& diags);
+
 // Rewrites the strings the schema marks as paths ("x-path") from relative
 // to the file that wrote them to relative to the scene's folder, so the
 // resolved scene stands alone next to the scene file. --set paths are

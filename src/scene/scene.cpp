@@ -32,6 +32,7 @@ Simulation finish(std::optional<Node> tree, const std::string& path, const LoadO
                   Budget& budget, Diagnostics& diags) {
   if (!tree) diags.raise();
   Node& root = *tree;
+  apply_scene_set(root, diags);
   for (std::size_t i = 0; i < options.overrides.size(); ++i)
     apply_override(root, options.overrides[i].first, options.overrides[i].second, int(i + 1),
                    budget, diags);

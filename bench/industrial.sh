@@ -1,0 +1,50 @@
+#!/bin/bash
+# The plant-scale scene, scenes/ces_industrial.yaml, measured: one run on
+# every core to END simulated seconds (default: the scene's 5 s), then the
+# first SHORT seconds (default 0.1) on one thread and on two, back to back.
+# Writes bench/out/industrial/industrial.txt (and prints it): the machine,
+# its load, the commands, and per run the wall time per stage, particles,
+# contacts, iterations, residual, overlap and peak resident memory (GNU
+# time's maximum RSS), the memory per particle and per contact, and the
+# 1 -> 2 thread speed-up. Usage, from the repository root:
+#   bash bench/industrial.sh [END [SHORT]]
+# The runs are started at nice 10: on a shared machine they take what the
+# others leave, and the file says how loaded it was.
+set -eu
+end=${1:-5}
+short=${2:-0.1}
+bin=${CES_SIM:-build/ces-sim}
+scene=scenes/ces_industrial.yaml
+out=bench/out/industrial
+mkdir -p "$out"
+cores=$(nproc)
+
+# One run: its folder, and GNU time's report beside it.
+run() {
+  local name=$1 threads=$2 until=$3 dir=$out/$1
+  rm -rf "$dir"
+  echo "nice -n 10 $bin $scene --set time.end=${until}s --threads $threads -q -o $dir" \
+    > "$out/$name.command"
+  /usr/bin/time -v -o "$out/$name.time" nice -n 10 "$bin" "$scene" --set "time.end=${until}s" \
+    --threads "$threads" -q -o "$dir" > /dev/null
+}
+
+# The load the machine carried: its 1-minute load average every 10 s.
+sample_load() {
+  while :; do cut -d' ' -f1 /proc/loadavg >> "$out/load.txt"; sleep 10; done
+}
+rm -f "$out/load.txt"
+sample_load &
+sampler=$!
+trap 'kill $sampler 2>/dev/null || true' EXIT
+
+start=$(date -u '+%Y-%m-%d %H:%M UTC')
+run empty "$cores" 0.0005  # one step: the process without particles
+run full "$cores" "$end"
+run one 1 "$short"
+run two 2 "$short"
+kill $sampler
+
+python3 bench/industrial_report.py "$out" "$start" "$cores" "$end" "$short" \
+  > "$out/industrial.txt"
+cat "$out/industrial.txt"

@@ -1,0 +1,122 @@
+"""bench/industrial.sh's report: reads the runs' summaries, GNU time's
+reports and the load samples from OUT, prints the text of industrial.txt.
+Usage: python3 bench/industrial_report.py OUT START CORES END SHORT"""
+import json
+import platform
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+out, start, cores, end, short = Path(sys.argv[1]), sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5]
+STAGES = ["feed", "broadphase", "narrowphase", "forces", "assemble", "solve", "safeguards",
+          "integrate", "collect", "output"]
+
+
+def summary(name):
+    return json.loads((out / name / "summary.json").read_text())
+
+
+def peak_rss_bytes(name):
+    for line in (out / f"{name}.time").read_text().splitlines():
+        if "Maximum resident set size" in line:
+            return 1024 * int(line.split(":")[1])
+    raise SystemExit(f"no maximum resident set size in {name}.time")
+
+
+def cpu_model():
+    for line in Path("/proc/cpuinfo").read_text().splitlines():
+        if line.startswith("model name"):
+            return line.split(":", 1)[1].strip()
+    return platform.processor()
+
+
+def memory_gib():
+    kb = int(Path("/proc/meminfo").read_text().split()[1])
+    return kb / 2**20
+
+
+def commit():
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def step_seconds(s):
+    stages = s["wall_time_s"]["stages"]
+    return sum(v for k, v in stages.items() if k != "output")
+
+
+def describe(name, title):
+    s = summary(name)
+    solver, stages = s["solver"], s["wall_time_s"]["stages"]
+    step = step_seconds(s)
+    print(f"## {title}\n")
+    print("command: " + (out / f"{name}.command").read_text().strip())
+    print(f"simulated {s['simulated_time_s']:g} s in {s['steps']} steps; wall {s['wall_time_s']['total']:.1f} s "
+          f"(the run loop), {s['wall_time_s']['total'] / max(s['simulated_time_s'], 1e-12):.0f} s per simulated second; "
+          f"threads {s['threads']}")
+    print(f"particles at most {solver['particles_max']}, contacts at most {solver['contacts_max']}; "
+          f"fed {s['balance']['fed']['count']} ({s['balance']['fed']['mass_kg'] * 1e3:.1f} g), "
+          f"collected {s['balance']['collected']['count']}, balance exact: {s['balance']['exact']}")
+    print(f"solver: {solver['iterations_mean']:.1f} iterations per step on average (cap {solver['max_iterations']}), "
+          f"{solver['steps_at_iteration_cap']} of {solver['steps_solved']} steps at the cap; residual median "
+          f"{solver['residual_median_mps']:.2g} m/s, 95th percentile {solver['residual_p95_mps']:.2g}, "
+          f"max {solver['residual_max_mps']:.2g}")
+    print(f"overlap: worst {solver['max_penetration_m'] * 1e3:.3f} mm, {solver['max_penetration_relative']:.2f} of the "
+          f"smaller radius; against walls {solver['max_wall_penetration_relative']:.2f}")
+    print(f"peak resident set: {peak_rss_bytes(name) / 2**20:.0f} MiB\n")
+    print("| stage | wall s | share of the step | over solve |")
+    print("|---|---|---|---|")
+    for k in STAGES:
+        print(f"| {k} | {stages[k]:.2f} | {stages[k] / step:.3f} | {stages[k] / stages['solve']:.3f} |")
+    print(f"| step (all but output) | {step:.2f} | 1 | {step / stages['solve']:.3f} |\n")
+    return s
+
+
+def load_line():
+    samples = [float(x) for x in (out / "load.txt").read_text().split()] if (out / "load.txt").exists() else []
+    if not samples:
+        return "load average: not sampled"
+    return (f"1-minute load average over the bench, sampled every 10 s ({len(samples)} samples): median "
+            f"{statistics.median(samples):.2f}, range {min(samples):.2f}-{max(samples):.2f}, on {cores} cores "
+            f"(the bench's own runs count in it: up to {cores} of it)")
+
+
+def memory_split(empty, runs):
+    """Bytes per particle and per contact: the two runs' peak resident sets
+    above the empty run's, solved for a P + b C."""
+    (p1, c1, m1), (p2, c2, m2) = runs
+    det = p1 * c2 - p2 * c1
+    if det == 0:
+        return None
+    a = ((m1 - empty) * c2 - (m2 - empty) * c1) / det
+    b = (p1 * (m2 - empty) - p2 * (m1 - empty)) / det
+    return a, b
+
+
+print(f"# ces-sim: the industrial scene ({start})\n")
+print(f"Machine: {cpu_model()}, {cores} cores, {memory_gib():.0f} GiB; {platform.system()} "
+      f"{platform.release()}; commit {commit()}.")
+print(load_line() + ".")
+print(f"Command: bash bench/industrial.sh {end} {short}\n")
+full = describe("full", f"Scene to {end} s on {cores} threads")
+one = describe("one", f"First {short} s on 1 thread")
+two = describe("two", f"First {short} s on 2 threads")
+print("## Speed-up, 1 -> 2 threads\n")
+print(f"over the first {short} s: whole step {step_seconds(one) / step_seconds(two):.2f}, solve "
+      f"{one['wall_time_s']['stages']['solve'] / two['wall_time_s']['stages']['solve']:.2f}, run loop "
+      f"{one['wall_time_s']['total'] / two['wall_time_s']['total']:.2f}\n")
+print("## Memory\n")
+empty = peak_rss_bytes("empty")
+runs = [(s["solver"]["particles_max"], s["solver"]["contacts_max"], peak_rss_bytes(n))
+        for s, n in ((two, "two"), (full, "full"))]
+print(f"peak resident set of the scene's process with no particles (one step): {empty / 2**20:.0f} MiB")
+print(f"the full run: {(runs[1][2] - empty) / runs[1][0]:.0f} B per particle above it, its contacts included "
+      f"({runs[1][0]} particles, {runs[1][1]} contacts)")
+split = memory_split(empty, runs)
+if split:
+    print(f"solved from the {short} s and full runs (peak resident sets, so capacities rounded up by the "
+          f"vectors' growth are in them): {split[0]:.0f} B per particle, {split[1]:.0f} B per contact")
