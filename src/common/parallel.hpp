@@ -104,7 +104,10 @@ template <class T>
 void exclusive_scan(std::vector<T>& v) {
   constexpr std::size_t kBlock = 4096;
   const std::size_t n = v.size(), blocks = (n + kBlock - 1) / kBlock;
-  std::vector<T> first(blocks + 1, T{});
+  // Grows only, per thread of the caller: a step allocates nothing.
+  static thread_local std::vector<T> buffer;
+  std::vector<T>& first = buffer;
+  first.assign(blocks + 1, T{});
 #pragma omp parallel for schedule(static) if (blocks > 1)
   for (std::size_t b = 0; b < blocks; ++b) {
     T sum{};
@@ -129,7 +132,9 @@ template <class Keep>
 void select_in_order(std::size_t n, Keep keep, std::vector<std::uint32_t>& out) {
   constexpr std::size_t kBlock = 4096;
   const std::size_t blocks = (n + kBlock - 1) / kBlock;
-  std::vector<std::uint32_t> first(blocks + 1, 0);
+  static thread_local std::vector<std::uint32_t> buffer;  // grows only
+  std::vector<std::uint32_t>& first = buffer;
+  first.assign(blocks + 1, 0);
   auto block = [&](std::size_t b, auto&& fn) {
     for (std::size_t i = b * kBlock; i < std::min(n, (b + 1) * kBlock); ++i)
       if (keep(i)) fn(std::uint32_t(i));

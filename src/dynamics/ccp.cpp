@@ -68,8 +68,8 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   frame_.resize(padded / kLanes * kFrameBlock);
   lever_.resize(6 * padded + 1);
   bias_.resize(padded);
-  gap_ = c.gap;
-  radius_ = c.radius;
+  gap_.assign(c.gap.begin(), c.gap.end());
+  radius_.assign(c.radius.begin(), c.radius.end());
   step_ = h;
   metric_.resize(padded / kLanes * kMetricBlock);
   for (std::size_t k = nc; k < padded; ++k) {
