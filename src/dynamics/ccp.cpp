@@ -57,6 +57,7 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
                           const std::vector<BilateralRow>& rows, double h,
                           const ContactSettings& settings) {
   bodies_ = &B;
+  contacts_ = &c;
   rows_ = rows;
   const std::size_t nc = c.size();
   a_.resize(nc);
@@ -68,8 +69,6 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   frame_.resize(padded / kLanes * kFrameBlock);
   lever_.resize(6 * padded + 1);
   bias_.resize(padded);
-  gap_.assign(c.gap.begin(), c.gap.end());
-  radius_.assign(c.radius.begin(), c.radius.end());
   step_ = h;
   metric_.resize(padded / kLanes * kMetricBlock);
   for (std::size_t k = nc; k < padded; ++k) {
@@ -369,8 +368,9 @@ bool CcpProblem::overlaps_within(ConstSpan g, bool world, double tolerance) cons
     for (std::size_t k = begin; k < end; ++k) {
       const Vec3 gk(g[3 * k], g[3 * k + 1], g[3 * k + 2]);
       const double row = world ? normal(k).dot(gk) : gk[0];
-      const double after = -(gap_[k] + step_ * (row - bias_[k]));
-      part.value = std::max(part.value, after - std::max(tolerance * radius_[k], -gap_[k]));
+      const double gap = contacts_->gap[k];
+      const double after = -(gap + step_ * (row - bias_[k]));
+      part.value = std::max(part.value, after - std::max(tolerance * contacts_->radius[k], -gap));
     }
   };
   return reduce_chunks<Worst>(a_.size(), excess).value <= 0.0;

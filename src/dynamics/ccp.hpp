@@ -290,6 +290,9 @@ class CcpProblem {
   double block_scale(int body, const Vec3& r) const;
 
   const SolverBodies* bodies_ = nullptr;
+  // The contacts assembled, read by overlaps_within (their gaps and radii);
+  // like the bodies, they outlive the step's solve.
+  const Contacts* contacts_ = nullptr;
   // Contacts, structure of arrays.
   std::vector<std::int32_t> a_, b_;
   // Normal and friction in blocks of kLanes contacts: component c (0-2 the
@@ -319,9 +322,7 @@ class CcpProblem {
     return {double(r[0]), double(r[1]), double(r[2])};
   }
   std::vector<double> bias_;
-  // Per contact, for overlaps_within: its gap and smaller radius; the step.
-  std::vector<double> gap_, radius_;
-  double step_ = 0.0;
+  double step_ = 0.0;  // h, for overlaps_within
   // APGD's metric, per block of four contacts: their step weights w, then
   // the bounds 1 / w (apgd_step scales the step by w and |d|^2 by 1 / w:
   // both loaded, no division).
