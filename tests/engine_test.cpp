@@ -619,7 +619,7 @@ TEST(Engine, ConeProjectionIsMoreauDecomposition) {
 // problem: 4 bodies (one a wall), 13 contacts at random points and normals
 // (lever arms off the normal, so every term of the Jacobian counts; two
 // normals along -z and +z, where a tangent basis is most easily wrong),
-// friction 0 on some, and one bilateral row. The normals are stored in
+// friction 0 on some, two yielding, and one bilateral row. The normals are stored in
 // float, so the frame is orthonormal to about 1e-7: the tolerance is 1e-6
 // of each quantity's scale. A wrong sign, term or case is of order 1.
 TEST(Engine, ApgdKernelMatchesPlainOperations) {
@@ -641,8 +641,11 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
     const Vec3 n = k == 11   ? Vec3(0, 0, -1)
                    : k == 12 ? Vec3(1e-5, 0, 1).normalized()
                              : vec().normalized();
-    c.push(a, b, n, 0.01 * vec(), 1e-4 * uniform(), 0.001, k % 5 == 0 ? 0.0 : 0.5 + 0.4 * uniform(),
-           0.0, ContactKey{});
+    // Contacts 1 and 6 yield (their blocks of four take the spring's
+    // term), the blocks from 8 on are rigid.
+    const double compliance = k == 1 || k == 6 ? 1e-3 : 0.0;
+    c.push(a, b, n, 0.01 * vec(), 1e-4 * uniform(), 0.001,
+           {k % 5 == 0 ? 0.0 : 0.5 + 0.4 * uniform(), 0.0, compliance}, ContactKey{});
   }
   BilateralRow row;
   row.a = 0;
@@ -861,7 +864,7 @@ TEST(Engine, ApgdMetricBoundsEachContactBlock) {
   Contacts c;
   for (int k = 0; k < 20; ++k) {
     const int a = k % 4, b = k % 3 == 0 ? 4 : (a + 1) % 4;
-    c.push(a, b, vec().normalized(), 0.01 * vec(), 0.0, 0.001, 0.5, 0.0, ContactKey{});
+    c.push(a, b, vec().normalized(), 0.01 * vec(), 0.0, 0.001, {0.5, 0.0}, ContactKey{});
   }
   CcpProblem p;
   p.assemble(c, B, {}, 1e-3, ContactSettings{});

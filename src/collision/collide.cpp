@@ -91,13 +91,13 @@ void hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> m
 // hull's corners (hull_points; manifold reduction, as Box2D and Jolt do
 // it). A group with other normals (a corner) keeps its own. The kept go to
 // `out` in the candidates' order.
-void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b, double mu, double e,
-                     Contacts& out) {
+void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
+                     const SurfacePair& surfaces, Contacts& out) {
   constexpr std::size_t kKeep = 5;
   constexpr double kSameNormal = 0.95;  // cos 18°
   const std::size_t n = c.size();
   auto push = [&](const Candidate& k) {
-    out.push(body_a, body_b, k.normal, k.point, k.gap, k.radius, mu, e, k.key);
+    out.push(body_a, body_b, k.normal, k.point, k.gap, k.radius, surfaces, k.key);
   };
   if (n <= kKeep) {
     for (const Candidate& k : c) push(k);
@@ -285,8 +285,7 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
       const auto ui = std::size_t(i), uj = std::size_t(j);
       const ParticleShape& si = model.shapes[std::size_t(p.shape[ui])];
       const ParticleShape& sj = model.shapes[std::size_t(p.shape[uj])];
-      const double mu = mat.friction(p.material[ui], p.material[uj]);
-      const double e = mat.restitution(p.material[ui], p.material[uj]);
+      const SurfacePair surfaces = mat.pair(p.material[ui], p.material[uj]);
       const double envelope = envelope_[ui] + envelope_[uj];
       const double sci = p.scale[ui], scj = p.scale[uj];
       candidates.clear();
@@ -304,7 +303,7 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
           sphere_sphere(ca, sci * si.radii[a], cb, scj * sj.radii[b], envelope, key, candidates);
         }
       }
-      reduce_manifold(candidates, i, j, mu, e, part);
+      reduce_manifold(candidates, i, j, surfaces, part);
     }
   });
 }
@@ -351,8 +350,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
         geo::query(rb.shape, local_centre, bounding + envelope_[i] + surface_travel, hits);
         if (hits.empty()) continue;
       }
-      const double mu = mat.friction(rb.material, p.material[i]);
-      const double e = mat.restitution(rb.material, p.material[i]);
+      const SurfacePair surfaces = mat.pair(rb.material, p.material[i]);
       candidates.clear();
       for (std::size_t k = 0; k < s.centers.size(); ++k) {
         const Vec3& c = sphere_centre_[sphere_first_[i] + k];
@@ -372,7 +370,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
           candidates.push_back({n, c - n * (r + 0.5 * gap), gap, r, key});
         }
       }
-      reduce_manifold(candidates, solver_index, int(i), mu, e, part);
+      reduce_manifold(candidates, solver_index, int(i), surfaces, part);
     }
   });
 }

@@ -15,19 +15,23 @@ void Contacts::clear() {
   radius.clear();
   friction.clear();
   restitution.clear();
+  compliance.clear();
+  damping_ratio.clear();
   key.clear();
 }
 
 void Contacts::push(int a, int b, const Vec3& n, const Vec3& p, double g, double r,
-                    double mu, double e, const ContactKey& k) {
+                    const SurfacePair& surfaces, const ContactKey& k) {
   body_a.push_back(a);
   body_b.push_back(b);
   normal.push_back(n);
   point.push_back(p);
   gap.push_back(g);
   radius.push_back(r);
-  friction.push_back(mu);
-  restitution.push_back(e);
+  friction.push_back(surfaces.friction);
+  restitution.push_back(surfaces.restitution);
+  compliance.push_back(surfaces.compliance);
+  damping_ratio.push_back(surfaces.damping_ratio);
   key.push_back(k);
 }
 
@@ -40,6 +44,8 @@ void Contacts::resize(std::size_t n) {
   radius.resize(n);
   friction.resize(n);
   restitution.resize(n);
+  compliance.resize(n);
+  damping_ratio.resize(n);
   key.resize(n);
 }
 
@@ -59,6 +65,8 @@ void Contacts::copy_at(std::size_t at, const Contacts& o) {
   put(radius, at, o.radius);
   put(friction, at, o.friction);
   put(restitution, at, o.restitution);
+  put(compliance, at, o.compliance);
+  put(damping_ratio, at, o.damping_ratio);
   put(key, at, o.key);
 }
 

@@ -7,6 +7,7 @@
 
 #include "common/math.hpp"
 #include "model/contact_memory.hpp"
+#include "model/model.hpp"
 
 namespace ces {
 
@@ -20,12 +21,14 @@ struct Contacts {
   std::vector<double> radius;    // smaller sphere radius of the pair
   std::vector<double> friction;
   std::vector<double> restitution;
+  std::vector<double> compliance;  // m/N: 0 rigid, else the surfaces yield
+  std::vector<double> damping_ratio;  // of a yielding contact's spring
   std::vector<ContactKey> key;
 
   std::size_t size() const { return gap.size(); }
   void clear();
   void push(int a, int b, const Vec3& n, const Vec3& p, double g, double r,
-            double mu, double e, const ContactKey& k);
+            const SurfacePair& surfaces, const ContactKey& k);
   void resize(std::size_t n);
   // Writes `other`'s contacts at [at, at + other.size()), which must exist.
   void copy_at(std::size_t at, const Contacts& other);

@@ -24,6 +24,30 @@ MaterialTable::MaterialTable(std::vector<Material> materials, const std::vector<
       if (p.restitution) restitution_[index(x, y)] = *p.restitution;
     }
   }
+  damping_.resize(n * n);
+  for (std::size_t i = 0; i < n * n; ++i) damping_[i] = spring_damping_ratio(restitution_[i]);
+}
+
+namespace {
+// e(zeta) of the spring-dashpot whose contact ends at zero force, zeta < 1
+// (Schwager, Poeschel, 2007, eqs. for the force criterion).
+double force_criterion_restitution(double zeta) {
+  const double root = std::sqrt(1.0 - zeta * zeta), denominator = 1.0 - 2.0 * zeta * zeta;
+  // The phase omega_d t at which the force comes back to 0.
+  const double angle = kPi - std::atan2(2.0 * zeta * root, denominator);
+  return std::exp(-zeta / root * angle);
+}
+}  // namespace
+
+double spring_damping_ratio(double e) {
+  if (!(e < 1.0)) return 0.0;
+  if (e <= std::exp(-2.0)) return 1.0;
+  double lo = 0.0, hi = 1.0;  // e falls with zeta
+  for (int i = 0; i < 60; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (force_criterion_restitution(mid) > e ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
 }
 
 namespace {

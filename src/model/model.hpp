@@ -18,6 +18,9 @@ struct Material {
   double density = 1000.0;     // kg/m^3
   double friction = defaults::kMaterialFriction;        // Coulomb coefficient
   double restitution = defaults::kMaterialRestitution;  // normal coefficient of restitution
+  // m/N: how far a contact with this surface yields per newton of normal
+  // force (a brush's bristles bend); 0, rigid. Read by the dvi contact model.
+  double compliance = 0.0;
 };
 
 // Explicit values for one pair of materials; unset fields fall back to the
@@ -28,10 +31,26 @@ struct MaterialPair {
   std::optional<double> restitution;
 };
 
+// What a contact between two surfaces takes from their materials.
+struct SurfacePair {
+  double friction = 0.0, restitution = 0.0;
+  double compliance = 0.0;  // m/N, both surfaces' in series; 0: rigid
+  double damping_ratio = 0.0;  // of a yielding pair's spring (spring_damping_ratio)
+};
+
+// The damping ratio zeta of a linear spring-dashpot contact whose force
+// never pulls (it ends when the force, not the overlap, comes back to 0)
+// that gives restitution e (Schwager, Poeschel, Granular Matter 9(6),
+// 2007): e(zeta) falls from 1 at zeta = 0 to exp(-2) at zeta = 1. Below
+// that, 1: past critical damping the dashpot would hold a surface in for
+// longer than it was pressed, which a bristle bed does not do.
+double spring_damping_ratio(double restitution);
+
 // Friction and restitution for every pair of materials. Combination rule for
 // pairs without an override: the smaller of the two coefficients (as Chrono
 // does): the less grippy / less bouncy surface governs, which keeps a slippery
-// liner slippery whatever touches it.
+// liner slippery whatever touches it. Compliances add: two yielding surfaces
+// pressed together are springs in series.
 class MaterialTable {
  public:
   MaterialTable() = default;
@@ -39,11 +58,17 @@ class MaterialTable {
   const std::vector<Material>& materials() const { return materials_; }
   double friction(int a, int b) const { return friction_[index(a, b)]; }
   double restitution(int a, int b) const { return restitution_[index(a, b)]; }
+  SurfacePair pair(int a, int b) const {
+    const auto i = index(a, b);
+    return {friction_[i], restitution_[i],
+            materials_[std::size_t(a)].compliance + materials_[std::size_t(b)].compliance,
+            damping_[i]};
+  }
 
  private:
   std::size_t index(int a, int b) const { return std::size_t(a) * materials_.size() + std::size_t(b); }
   std::vector<Material> materials_;
-  std::vector<double> friction_, restitution_;
+  std::vector<double> friction_, restitution_, damping_;
 };
 
 // A rigid particle: one sphere or a rigid cluster of (possibly overlapping)

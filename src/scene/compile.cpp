@@ -106,8 +106,9 @@ void Compiler::read_materials() {
       materials_.declare(e.key, e.key_mark, m.path, int(list.size()), diags_);
       const Node* density = m.find("density");
       has_density_.push_back(density != nullptr);
+      const Node* stiffness = m.find("stiffness");
       list.push_back({e.key, density ? density->number() : 0.0, m.at("friction").number(),
-                      m.at("restitution").number()});
+                      m.at("restitution").number(), stiffness ? 1.0 / stiffness->number() : 0.0});
       model_->dem.materials.push_back(elastic(m));
     }
   }

@@ -28,6 +28,7 @@ constexpr std::array kKinds = {
     Kind{"count_rate", "a count rate", "1/s", "2000 /s", dim(0, 0, -1)},
     Kind{"inertia", "a moment of inertia", "kg m^2", "0.02 kg m^2", dim(1, 2, 0)},
     Kind{"force", "a force", "N", "10 N", dim(1, 1, -2)},
+    Kind{"stiffness", "a stiffness", "N/m", "2 N/m", dim(1, 0, -2)},
     Kind{"torque", "a torque", "N m", "2 N m", dim(1, 2, -2)},
     Kind{"voltage", "a voltage", "V", "-35 kV", dim(1, 2, -3, -1)},
     Kind{"resistivity", "a resistivity", "ohm m", "1e12 ohm m", dim(1, 3, -3, -2)},
