@@ -19,6 +19,40 @@ Vec3 point_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, int 
   return v[u] + w[u].cross(r);
 }
 
+// A yielding contact's row (CcpProblem::softness): a spring k = 1 / C with a
+// dashpot c in parallel, stepped by backward Euler. Its force at the end of
+// the step, F = -k (gap + h v_n) - c v_n, is gamma / h; so
+//   v_n + gap / (h + c / k) + gamma / (h (k h + c)) = 0  while it presses.
+// The dashpot's damping ratio zeta is the pair's (spring_damping_ratio: it
+// gives the pair's restitution), at the row's effective mass
+// 1 / normal_mass. An open gap is
+// closed as a rigid contact's (gap / h) and the spring takes what the step
+// would leave overlapping.
+struct SoftRow {
+  double softness = 0.0, bias = 0.0;
+};
+SoftRow soft_row(double compliance, double zeta, double normal_mass, double gap, double h) {
+  if (!(compliance > 0.0)) return {};
+  const double k = 1.0 / compliance;
+  const double c = normal_mass > 0.0 ? 2.0 * zeta * std::sqrt(k / normal_mass) : 0.0;
+  return {1.0 / (h * (k * h + c)), gap < 0.0 ? gap / (h + c / k) : gap / h};
+}
+
+// A rigid contact's bias: close a positive gap exactly this step, push an
+// overlap out no faster than the recovery speed, and rebound from an
+// impact by the restitution.
+double rigid_bias(const Contacts& c, std::size_t k, const SolverBodies& B, double h,
+                  const ContactSettings& settings) {
+  const Vec3& n = c.normal[k];
+  const int a = c.body_a[k], b = c.body_b[k];
+  const Vec3 ra = c.point[k] - B.x[std::size_t(a)], rb = c.point[k] - B.x[std::size_t(b)];
+  double bias = std::max(c.gap[k] / h, -settings.recovery_speed);
+  const double approach = n.dot(point_velocity(B.v, B.w, b, rb) - point_velocity(B.v, B.w, a, ra));
+  const bool impact = approach < -settings.restitution_threshold && c.gap[k] + h * approach < 0.0;
+  if (impact && c.restitution[k] > 0.0) bias = std::min(bias, c.restitution[k] * approach);
+  return bias;
+}
+
 }  // namespace
 
 double row_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w,
@@ -69,6 +103,7 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
   frame_.resize(padded / kLanes * kFrameBlock);
   lever_.resize(6 * padded + 1);
   bias_.resize(padded);
+  softness_.resize(padded);
   step_ = h;
   metric_.resize(padded / kLanes * kMetricBlock);
   for (std::size_t k = nc; k < padded; ++k) {
@@ -76,6 +111,7 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     for (std::size_t j = 0; j < 4; ++j) frame_[k / kLanes * kFrameBlock + j * kLanes + lane] = 0;
     for (std::size_t j = 0; j < 2; ++j) metric_[k / kLanes * kMetricBlock + j * kLanes + lane] = 0;
     bias_[k] = 0.0;
+    softness_[k] = 0.0;
   }
   std::fill(lever_.begin() + std::ptrdiff_t(6 * nc), lever_.end(), 0.0f);
   tangent_.resize(2 * nc);
@@ -110,22 +146,20 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
       lever_[6 * k + std::size_t(c)] = StoredScalar(ra[c]);
       lever_[6 * k + 3 + std::size_t(c)] = StoredScalar(rb[c]);
     }
-    // Stabilization: close a positive gap exactly this step, push an overlap
-    // out no faster than the recovery speed.
-    double bias = std::max(c.gap[k] / h, -settings.recovery_speed);
-    const double approach =
-        n.dot(point_velocity(B.v, B.w, b_[k], rb) - point_velocity(B.v, B.w, a_[k], ra));
-    const bool impact = approach < -settings.restitution_threshold && c.gap[k] + h * approach < 0.0;
-    if (impact && c.restitution[k] > 0.0) bias = std::min(bias, c.restitution[k] * approach);
-    bias_[k] = bias;
     const Vec3 nw = normal(k);  // the rounded row the kernel applies
-    diag_max = std::max(diag_max, row_mass(B, a_[k], nw, lever_a(k).cross(nw)) +
-                                      row_mass(B, b_[k], nw, lever_b(k).cross(nw)));
-    const double bound = block_scale(a_[k], lever_a(k)) + block_scale(b_[k], lever_b(k));
+    const double normal_mass =
+        row_mass(B, a_[k], nw, lever_a(k).cross(nw)) + row_mass(B, b_[k], nw, lever_b(k).cross(nw));
+    const SoftRow soft = soft_row(c.compliance[k], c.damping_ratio[k], normal_mass, c.gap[k], h);
+    softness_[k] = soft.softness;
+    bias_[k] = c.compliance[k] > 0.0 ? soft.bias : rigid_bias(c, k, B, h, settings);
+    diag_max = std::max(diag_max, normal_mass + softness_[k]);
+    const double bound =
+        block_scale(a_[k], lever_a(k)) + block_scale(b_[k], lever_b(k)) + softness_[k];
     float* mt = &metric_[k / kLanes * kMetricBlock + k % kLanes];
     mt[0] = bound > 0.0 ? float(1.0 / bound) : 0.0f;
     mt[kLanes] = float(bound);
   }
+  mark_soft_blocks();
   // The gather loads a body's velocity as a four-number vector: a spare.
   dv_.resize(B.inv_mass.size() + 1);
   dw_.resize(B.inv_mass.size() + 1);
@@ -226,6 +260,7 @@ void CcpProblem::add_row_impulses(ConstSpan x, std::vector<Vec3>& dv, std::vecto
 void CcpProblem::multiply(ConstSpan x, Span y) const {
   scatter(x, false, dv_, dw_);
   gather(dv_, dw_, false, y);
+  add_softness(x, y);
 }
 
 void CcpProblem::velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>& w) const {
@@ -243,6 +278,21 @@ void CcpProblem::row_velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<V
 void CcpProblem::gradient(ConstSpan x, Span g) const {
   scatter(x, true, dv_, dw_);
   gather(dv_, dw_, true, g);
+  add_softness(x, g);
+}
+
+void CcpProblem::mark_soft_blocks() {
+  soft_block_.assign((a_.size() + kLanes - 1) / kLanes, 0);
+  soft_.clear();
+  for (std::size_t k = 0; k < a_.size(); ++k)
+    if (softness_[k] > 0.0) {
+      soft_block_[k / kLanes] = 1;
+      soft_.push_back(std::uint32_t(k));
+    }
+}
+
+void CcpProblem::add_softness(ConstSpan x, Span g) const {
+  for (const std::uint32_t k : soft_) g[3 * k] += softness_[k] * x[3 * k];
 }
 
 void CcpProblem::project(Span x) const {
@@ -366,6 +416,7 @@ void CcpProblem::to_local(ConstSpan P, Span x) const {
 bool CcpProblem::overlaps_within(ConstSpan g, bool world, double tolerance) const {
   auto excess = [&](std::size_t begin, std::size_t end, Worst& part) {
     for (std::size_t k = begin; k < end; ++k) {
+      if (softness_[k] > 0.0) continue;  // a yielding surface's overlap is its give
       const Vec3 gk(g[3 * k], g[3 * k + 1], g[3 * k + 2]);
       const double row = world ? normal(k).dot(gk) : gk[0];
       const double gap = contacts_->gap[k];
@@ -382,7 +433,9 @@ void CcpProblem::world_gradient(ConstSpan P, Span g) const {
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t s = 0; s < nc; ++s) {
     const auto k = std::size_t(s);
-    const Vec3 rel = relative_velocity(k, dv_, dw_) + bias_[k] * normal(k);
+    const Vec3 n = normal(k), impulse(P[3 * k], P[3 * k + 1], P[3 * k + 2]);
+    const Vec3 rel =
+        relative_velocity(k, dv_, dw_) + (bias_[k] + softness_[k] * n.dot(impulse)) * n;
     std::copy_n(rel.data(), 3, &g[3 * k]);
   }
   gather_rows(dv_, dw_, true, g);
@@ -463,6 +516,7 @@ double CcpProblem::block_bound(std::size_t k) const {
   };
   add(a_[k], lever_a(k));
   add(b_[k], lever_b(k));
+  block(0, 0) += softness_[k];
   return block.cwiseAbs().rowwise().sum().maxCoeff();
 }
 

@@ -134,11 +134,15 @@ class CcpProblem {
   // -(gap + h v_n). g in world rows (the APGD kernel's) or in the
   // contacts' frames.
   bool overlaps_within(ConstSpan g, bool world, double tolerance) const;
+  // g += E x for x in the contacts' frames: a yielding contact's normal row
+  // carries its softness times its impulse (below).
+  void add_softness(ConstSpan x, Span g) const;
   // Upper bound on the largest eigenvalue of N (Gershgorin-like, cheap).
   double diagonal_max() const { return diag_max_; }
 
   // g = J v + b for velocities v, w: the gradient N x + r when v, w are
-  // velocities(x), without the scatter again.
+  // velocities(x), without the scatter again, but for the yielding
+  // contacts' E x (add_softness).
   void gradient_at(const std::vector<Vec3>& v, const std::vector<Vec3>& w, Span g) const {
     gather(v, w, true, g);
   }
@@ -232,6 +236,16 @@ class CcpProblem {
   Vec3 lever_a(std::size_t k) const { return lever(k, 0); }
   Vec3 lever_b(std::size_t k) const { return lever(k, 1); }
   double bias(std::size_t k) const { return bias_[k]; }
+  // A contact with a yielding surface (Material::compliance C, m/N) is a
+  // damped spring, not a wall: its normal row is v_n + b + eps x_n >= 0,
+  // the backward-Euler step of a spring of stiffness 1 / C with its
+  // dashpot (soft_row in ccp.cpp; Lacoursiere's regularised constraints,
+  // as Chrono's compliance and Box2D's soft step take them); undamped,
+  // eps = C / h^2. At rest under a force F it gives F C, and it pushes out
+  // an overlap by its force, with no recovery cap. N becomes N + E, E = eps
+  // on the normal rows: still symmetric and positive.
+  double softness(std::size_t k) const { return softness_[k]; }
+  bool yields(std::size_t k) const { return softness_[k] > 0.0; }
   // Contact k's rows of x (its frame's) as a world vector.
   Vec3 world_impulse(std::size_t k, ConstSpan x) const;
   // The velocity of b's point of the contact relative to a's, at v, w.
@@ -322,6 +336,13 @@ class CcpProblem {
     return {double(r[0]), double(r[1]), double(r[2])};
   }
   std::vector<double> bias_;
+  // eps per contact (0: rigid), padded like bias_; the blocks of four
+  // with a yielding contact, which the kernel alone gives the E x term,
+  // and the yielding contacts, for the passes outside it.
+  std::vector<double> softness_;
+  std::vector<std::uint8_t> soft_block_;
+  std::vector<std::uint32_t> soft_;
+  void mark_soft_blocks();
   double step_ = 0.0;  // h, for overlaps_within
   // APGD's metric, per block of four contacts: their step weights w, then
   // the bounds 1 / w (apgd_step scales the step by w and |d|^2 by 1 / w:

@@ -94,14 +94,18 @@ void ContactDynamics::assemble(const Model& m, State& state, const Contacts& con
 void ContactDynamics::measure_penetration(const Model& m, const Particles& particles,
                                           const Contacts& contacts, StepStats& stats) const {
   double pen_max = stats.max_penetration, rel_max = stats.max_penetration_relative,
-         wall_max = stats.max_wall_penetration_relative;
+         wall_max = stats.max_wall_penetration_relative, yield_max = stats.max_yield;
   const auto nc = std::ptrdiff_t(contacts.size());
   const std::size_t np = particles.size();
 #pragma omp parallel for schedule(static) if (nc > kParallelMin) \
-    reduction(max : pen_max, rel_max, wall_max)
+    reduction(max : pen_max, rel_max, wall_max, yield_max)
   for (std::ptrdiff_t s = 0; s < nc; ++s) {
     const auto k = std::size_t(s);
     const double pen = -contacts.gap[k], rel = pen / contacts.radius[k];
+    if (contacts.compliance[k] > 0.0) {
+      yield_max = std::max(yield_max, pen);
+      continue;
+    }
     pen_max = std::max(pen_max, pen);
     rel_max = std::max(rel_max, rel);
     const auto a = std::size_t(contacts.body_a[k]);
@@ -110,6 +114,7 @@ void ContactDynamics::measure_penetration(const Model& m, const Particles& parti
   stats.max_penetration = pen_max;
   stats.max_penetration_relative = rel_max;
   stats.max_wall_penetration_relative = wall_max;
+  stats.max_yield = yield_max;
 }
 
 void ContactDynamics::solve(const Model& m, StepStats& stats) {

@@ -334,6 +334,14 @@ template <class T>
   return g;
 }
 
+// g += eps (n.P) n, a yielding contact's spring (CcpProblem::softness), lane
+// by lane; eps is 0 on a rigid lane.
+[[gnu::always_inline]] inline void add_spring(const FrameLanes& F, d4 eps, const Lanes3& P,
+                                       Lanes3& g) {
+  const d4 pn = F.n[0] * P.c[0] + F.n[1] * P.c[1] + F.n[2] * P.c[2];
+  for (int c = 0; c < 3; ++c) g.c[c] += eps * pn * F.n[c];
+}
+
 // A bilateral row's trial, as trial_block does a contact's.
 void trial_row(double x, double x_old, double gx, double g_old, CcpProblem::Momentum mo,
                double step, double weight, double lo, double hi, double& x1,
@@ -459,14 +467,14 @@ CcpProblem::TrialSums CcpProblem::apgd_gradient_on(ConstSpan x1, Span g1, ConstS
     for_blocks(begin, end, [&](std::size_t k0, auto count) __attribute__((always_inline)) {
       BlockRows blk(3 * k0, 3 * count);
       const FrameLanes F = load_frame(&frame_[k0 / kLanes * kFrameBlock]);
-      const Lanes3 g =
-          gather_block(F, &lever_[6 * k0], &a_[k0], &b_[k0], count, dv_, dw_, &bias_[k0]);
+      const double *p1 = blk.in(x1, 0), *px = blk.in(x, 1), *pold = old ? blk.in(x_old, 2) : px;
+      Lanes3 g = gather_block(F, &lever_[6 * k0], &a_[k0], &b_[k0], count, dv_, dw_, &bias_[k0]);
+      if (soft_block_[k0 / kLanes]) add_spring(F, load(&softness_[k0]), load_rows(p1), g);
       double* pg = blk.out(g1, 3);
       store_rows(pg, g);
       blk.flush(g1, 3);
       // d.g1 with d = x1 - y, y made again as apgd_step made it (the same
       // bits): cheaper than storing y there and reading it here.
-      const double *p1 = blk.in(x1, 0), *px = blk.in(x, 1), *pold = old ? blk.in(x_old, 2) : px;
       for (std::size_t j = 0; j < 12; j += 4) {
         const d4 y = old ? mo.ca * load(px + j) - mo.cb * load(pold + j) : load(px + j);
         d_g1 += (load(p1 + j) - y) * load(pg + j);

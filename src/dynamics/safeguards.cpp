@@ -76,9 +76,11 @@ struct WallGuard {
 };
 
 // Entry e of a body's adjacency is a contact of it with a wall: the body is
-// its B side, and its A side has infinite mass.
+// its B side, and its A side has infinite mass and does not yield (a
+// yielding surface is a spring the solve balances, not a row to finish).
 bool wall_entry(const CcpProblem& p, std::uint32_t e) {
-  return (e & 1) && p.bodies().inv_mass[std::size_t(p.body_a(e >> 1))] == 0.0;
+  const std::size_t k = e >> 1;
+  return (e & 1) && p.bodies().inv_mass[std::size_t(p.body_a(k))] == 0.0 && !p.yields(k);
 }
 
 // The wall guard's sweeps over body b's rows with walls; its counts into out.
@@ -154,6 +156,7 @@ std::size_t guard_body_rows(const CcpProblem& p, Span x, std::vector<Vec3>& v, s
   for (int sweep = 0; sweep < sweeps; ++sweep) {
     std::size_t made = 0;
     for (const std::uint32_t k : rows) {
+      if (p.yields(k)) continue;
       const auto a = std::size_t(p.body_a(k)), b = std::size_t(p.body_b(k));
       const Vec3 n = p.normal(k), ra = p.lever_a(k), rb = p.lever_b(k);
       const double deficit = -p.bias(k) - n.dot(p.relative_velocity(k, v, w));
@@ -298,6 +301,7 @@ void make_safe(Guard& c, StepStats& stats) {
     problem.row_velocities(gamma, c.scratch.base_v, c.scratch.base_w);
     problem.gradient_at(c.scratch.base_v, c.scratch.base_w, r);  // at the joints' impulses alone
     problem.gradient_at(v, w, g);              // N x + r, from the velocities of x
+    problem.add_softness(gamma, g);
     // r.x and x.Nx in fixed chunks: the same bits for any thread count.
     struct Sums {
       double rx = 0.0, xnx = 0.0;
@@ -334,6 +338,7 @@ void make_safe(Guard& c, StepStats& stats) {
   }
   if (changed) {
     problem.gradient_at(v, w, g);
+    problem.add_softness(gamma, g);
     stats.solver.residual = problem.residual(gamma, g);
   }
 }

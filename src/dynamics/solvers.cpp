@@ -244,7 +244,7 @@ void pgs_contacts(const CcpProblem& p, ConstSpan steps, Span x, std::vector<Vec3
     const auto [n, t1, t2] = p.frame(k);
     const Vec3 rel = p.relative_velocity(k, v, w);
     const std::size_t i = 3 * k;
-    double gn = x[i] - step * (n.dot(rel) + p.bias(k));
+    double gn = x[i] - step * (n.dot(rel) + p.bias(k) + p.softness(k) * x[i]);
     double g1 = x[i + 1] - step * t1.dot(rel);
     double g2 = x[i + 2] - step * t2.dot(rel);
     project_cone(p.friction(k), gn, g1, g2);

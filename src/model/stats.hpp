@@ -52,6 +52,10 @@ struct StepStats {
   // above 1, a sphere's centre is past a wall's surface (into the drum,
   // through a plate).
   double max_wall_penetration_relative = 0.0;
+  // m: the deepest a yielding surface (Material::compliance, a brush's
+  // bristles) gives under a particle. Not an overlap: the surface bends
+  // by it, so it is kept out of the two above.
+  double max_yield = 0.0;
   double joint_drift = 0.0;               // m, at the start of the step
   // The safeguards (dynamics/safeguards.hpp): when the solve stopped at its
   // cap, the factor its contact impulses were scaled by so as not to create

@@ -69,7 +69,8 @@ function solver() {
     ['steps at the iteration cap', s.steps_at_iteration_cap + ' of ' + s.steps_solved],
     ['residual p95 (m/s)', s.residual_p95_mps.toExponential(2)],
     ['worst overlap / radius', frac(s.max_penetration_relative)],
-    ['worst wall penetration / radius', frac(s.max_wall_penetration_relative)]]);
+    ['worst wall penetration / radius', frac(s.max_wall_penetration_relative)],
+    ['deepest give of a yielding surface (mm)', fmt(1e3 * s.max_surface_yield_m, 3)]]);
   table(p, ['stage', 'wall s'], Object.entries(S.wall_time_s.stages).map(([k, v]) => [k, fmt(v, 3)]));
 }
 const palette = ['#c0392b', '#2471a3', '#229954', '#d68910', '#7d3c98', '#17a589', '#566573', '#a04000'];

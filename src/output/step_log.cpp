@@ -43,6 +43,7 @@ void StepLog::record(const StepStats& s) {
       std::max(sum_.max_penetration_relative, s.max_penetration_relative);
   sum_.max_wall_penetration_relative =
       std::max(sum_.max_wall_penetration_relative, s.max_wall_penetration_relative);
+  sum_.max_yield = std::max(sum_.max_yield, s.max_yield);
   if (s.impulse_scale < 1.0) ++sum_.steps_impulses_scaled;
   sum_.wall_corrections += s.wall_corrections;
   sum_.walls_finished += s.walls_finished;

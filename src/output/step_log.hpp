@@ -26,6 +26,7 @@ struct SolverSummary {
   double max_penetration = 0.0;    // m
   double max_penetration_relative = 0.0;
   double max_wall_penetration_relative = 0.0;  // contacts with static and kinematic bodies only
+  double max_yield = 0.0;  // m, yielding surfaces (StepStats::max_yield)
   // Steps stopped at the cap whose impulses were scaled down so as not to
   // create energy, and wall rows the wall guard finished (dynamics/safeguards.hpp).
   std::uint64_t steps_impulses_scaled = 0;

@@ -103,6 +103,7 @@ Json solver_json(const RunRecord& r) {
           {"max_penetration_m", s.max_penetration},
           {"max_penetration_relative", s.max_penetration_relative},
           {"max_wall_penetration_relative", s.max_wall_penetration_relative},
+          {"max_surface_yield_m", s.max_yield},
           {"steps_impulses_scaled", s.steps_impulses_scaled},
           {"wall_guard_corrections", s.wall_corrections},
           {"wall_guard_bodies_finished", s.walls_finished},
