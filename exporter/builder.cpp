@@ -348,6 +348,8 @@ class Builder {
     Node e = scene::from_json(json{{"name", p.name}, {"polar", polar}, {"radius", tidy(c.radius)}},
                               p.rule->mark);
     put(e, "voltage", *p.rule->spec->find("voltage"));
+    for (const char* key : {"type", "mobility", "air_density"})
+      put_copy(e, key, p.rule->spec->find(key));
     return e;
   }
 

@@ -166,6 +166,110 @@ TEST(ExportStl, ElectrodesAndTheDrumFrame) {
   expect_validates(e);
 }
 
+// The reference machine's two electrodes as STL, in mm: the static one
+// (19 mm) at 267 mm and 30 deg, the corona wire (0.1 mm, 72 sides) at
+// 210.1 mm and 75 deg.
+void write_electrodes(const fs::path& dir) {
+  const auto at = [](double distance, double degrees) {
+    return Vec3(distance * std::cos(degrees * kPi / 180), distance * std::sin(degrees * kPi / 180),
+                0);
+  };
+  write_stl(dir / "electrode.stl", cylinder(19, 300, 128, at(267, 30)));
+  write_stl(dir / "wire.stl", cylinder(0.1, 300, 72, at(210.1, 75)));
+}
+
+const char* kLineCharges = "electrostatics: {field: {model: line_charges}}\n";
+
+// A corona wire drawn as a thin cylinder: its electrode has the wire's
+// radius and the rule's type and corona keys, and the scene runs the wire.
+TEST(ExportStl, CoronaWireElectrodeWithItsKeys) {
+  const fs::path work = fresh_dir("export_stl_corona");
+  write_stl_machine(work / "cad");
+  write_electrodes(work / "cad");
+  const Exported e =
+      run(work / "cad",
+          machine_annotations("[0, 0, -1]",
+                              "  electrode: {role: electrode, voltage: -35 kV}\n"
+                              "  wire: {role: electrode, type: corona, voltage: -35 kV,\n"
+                              "         mobility: 1.9 cm^2/V/s, air_density: 0.95}\n") +
+              kLineCharges,
+          work);
+  ASSERT_EQ(e.code, 0) << e.err;
+  const YAML::Node electrode = e.scene["electrostatics"]["electrodes"][0];
+  EXPECT_FALSE(electrode["type"]) << electrode;
+  const YAML::Node wire = e.scene["electrostatics"]["electrodes"][1];
+  EXPECT_EQ(wire["name"].as<std::string>(), "wire");
+  EXPECT_EQ(wire["type"].as<std::string>(), "corona");
+  EXPECT_EQ(wire["mobility"].as<std::string>(), "1.9 cm^2/V/s");
+  EXPECT_EQ(wire["air_density"].as<double>(), 0.95);
+  EXPECT_EQ(wire["voltage"].as<std::string>(), "-35 kV");
+  EXPECT_NEAR(wire["radius"].as<double>(), 1e-4, 1e-7);  // float STL coordinates
+  EXPECT_NEAR(wire["polar"]["distance"].as<double>(), 0.2101, 1e-6);
+  EXPECT_NEAR(std::stod(wire["polar"]["angle"].as<std::string>()), 75.0, 1e-3);
+  expect_validates(e);
+}
+
+// Corona keys are checked at their line: a type that is neither, a
+// mobility without its unit or below zero, an air density of 0, and corona
+// keys on an electrode that does not ionise.
+TEST(ExportBadInput, CoronaKeys) {
+  const fs::path work = fresh_dir("export_bad_corona");
+  write_stl_machine(work / "cad");
+  write_electrodes(work / "cad");
+  const Exported e =
+      run(work / "cad",
+          machine_annotations("[0, 0, -1]",
+                              "  electrode: {role: electrode, voltage: -35 kV, air_density: 1}\n"
+                              "  wire: {role: electrode, type: ionising, voltage: -35 kV,\n"
+                              "         mobility: 2.1, air_density: 0}\n") +
+              kLineCharges,
+          work);
+  EXPECT_EQ(e.code, 2);
+  for (const char* message :
+       {"annotations.yaml:5:62: parts.electrode.air_density: air_density is a corona wire's, but "
+        "this electrode is static (the default type), expected type: corona with it",
+        "annotations.yaml:6:33: parts.wire.type: got 'ionising', expected static or corona",
+        "annotations.yaml:7:20: parts.wire.mobility: got 2.1, a number without a unit, expected "
+        "an ion mobility with its unit such as '2.1 cm^2/V/s' ('2.1 m^2/V/s' if m^2/V/s are "
+        "meant)",
+        "annotations.yaml:7:38: parts.wire.air_density: got 0, expected a relative air density > 0 "
+        "such as 1 (1 at 20 degC and 1 atm)"})
+    EXPECT_NE(e.err.find(message), std::string::npos) << message << "\n" << e.err;
+  expect_nothing_written(e);
+  const Exported negative = run(work / "cad",
+                                machine_annotations("[0, 0, -1]",
+                                                    "  wire: {role: electrode, type: corona, "
+                                                    "voltage: -35 kV, mobility: -2 cm^2/V/s}\n"),
+                                work);
+  EXPECT_EQ(negative.code, 2);
+  EXPECT_NE(negative.err.find("annotations.yaml:5:68: parts.wire.mobility: got '-2 cm^2/V/s', "
+                              "expected a positive ion mobility such as '2.1 cm^2/V/s'"),
+            std::string::npos)
+      << negative.err;
+}
+
+// The 19 mm electrode given type: corona would never ionise: refused at its
+// type with the radius the part has.
+TEST(ExportBadInput, CoronaWireTooThick) {
+  const fs::path work = fresh_dir("export_bad_thick_wire");
+  write_stl_machine(work / "cad");
+  write_electrodes(work / "cad");
+  const Exported e =
+      run(work / "cad",
+          machine_annotations("[0, 0, -1]",
+                              "  electrode: {role: electrode, type: corona, voltage: -35 kV}\n"
+                              "  wire: {role: electrode, type: corona, voltage: -35 kV}\n") +
+              kLineCharges,
+          work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find("annotations.yaml:5:38: parts.electrode.type: electrode 'electrode' has a "
+                       "radius of 19 mm (fitted), too thick to ionise: expected a corona wire of "
+                       "radius at most 1 mm, or type: static for a field electrode"),
+            std::string::npos)
+      << e.err;
+  expect_nothing_written(e);
+}
+
 // Splitter plates tilted as drawn, in float STL coordinates: each a box body
 // of the plate's size, turned as the plate is (up to the box's symmetry).
 TEST(ExportStl, TiltedSplittersAreBoxes) {
