@@ -42,7 +42,10 @@ std::vector<std::string> part_keys(Role role) {
   const auto add = [&](std::initializer_list<const char*> more) {
     keys.insert(keys.end(), more.begin(), more.end());
   };
-  if (is_body_role(role)) add({"material", "friction", "restitution"});
+  if (is_body_role(role)) {
+    add({"material"});
+    keys.insert(keys.end(), material_keys().begin(), material_keys().end());
+  }
   switch (role) {
     case Role::Drum:
     case Role::Brush:
@@ -168,6 +171,20 @@ void check_number(const Node& n, Diagnostics& diags) {
     diags.error(n, "got " + scene::describe(n) + ", expected a number >= 0");
 }
 
+// A body's material: a materials entry, or keys of its own (friction at
+// least) that make a material of the part's name.
+void check_material(const Node& spec, Role role, Diagnostics& diags) {
+  const auto own = std::find_if(material_keys().begin(), material_keys().end(),
+                                [&](const std::string& k) { return spec.find(k) != nullptr; });
+  if (spec.find("material") && own != material_keys().end())
+    diags.error(*spec.find(*own), "both material and " + *own +
+                                      " given, expected a material (a materials entry), or "
+                                      "material keys for a material of this part alone");
+  else if (!spec.find("material") && !spec.find("friction"))
+    diags.error(spec, a_role(role_name(role)) +
+                          " needs a material (a materials entry) or a friction coefficient");
+}
+
 // A corona wire's keys: the mobility of its ions and the relative density
 // of the air, each checked where a slip is still at its line.
 void check_corona_keys(const Node& spec, Diagnostics& diags) {
@@ -219,13 +236,7 @@ void check_part_values(const Node& spec, Role role, Diagnostics& diags) {
   if (spec.find("speed") && spec.find("rpm"))
     diags.error(*spec.find("rpm"), "both speed and rpm given, expected one of them");
   if (role == Role::Electrode) check_electrode(spec, diags);
-  if (is_body_role(role) && !spec.find("material") && !spec.find("friction"))
-    diags.error(spec, a_role(role_name(role)) +
-                          " needs a material (a materials entry) or a friction coefficient");
-  if (spec.find("material") && (spec.find("friction") || spec.find("restitution")))
-    diags.error(spec,
-                "both material and friction/restitution given, expected a material, or "
-                "friction/restitution for a material of this part alone");
+  if (is_body_role(role)) check_material(spec, role, diags);
   if (const Node* j = spec.find("joint");
       j && expect_map(*j, "a mapping of joint settings", diags)) {
     check_keys(*j, joint_keys(role), "the joint of " + a_role(role_name(role)), diags);
@@ -346,6 +357,17 @@ std::optional<Node> parse_file(const std::string& path, Diagnostics& diags) {
 }
 
 }  // namespace
+
+const std::vector<std::string>& material_keys() {
+  static const std::vector<std::string> keys = [] {
+    std::vector<std::string> k;
+    for (const auto& [key, value] :
+         scene::schema().at("definitions").at("material").at("properties").items())
+      k.push_back(key);
+    return k;
+  }();
+  return keys;
+}
 
 const char* role_name(Role role) {
   for (const auto& [name, r] : kRoles)

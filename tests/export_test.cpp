@@ -270,6 +270,46 @@ TEST(ExportBadInput, CoronaWireTooThick) {
   expect_nothing_written(e);
 }
 
+// Materials keep every key they are given: the annotations' own entries,
+// copied as scene keys, and a part's own material, made of whichever
+// material keys its rule has.
+TEST(ExportStl, MaterialKeysComeThrough) {
+  const fs::path work = fresh_dir("export_stl_materials");
+  write_stl_machine(work / "cad");
+  const std::string parts =
+      "parts:\n"
+      "  drum: {role: drum, material: steel, speed: 44.8 rpm, rotation_axis: [0, 0, -1]}\n"
+      "  hopper: {role: hopper, friction: 0.4, restitution: 0.1, youngs_modulus: 2 GPa,\n"
+      "           poisson_ratio: 0.35}\n";
+  const Exported e = run(work / "cad",
+                         parts + "  splitter: {role: splitter, material: rubber}\n" + kSceneKeys +
+                             "  rubber: {friction: 0.8, restitution: 0.4, density: 1100 kg/m^3,\n"
+                             "           youngs_modulus: 10 MPa, poisson_ratio: 0.49}\n",
+                         work);
+  ASSERT_EQ(e.code, 0) << e.err;
+  const YAML::Node hopper = e.scene["materials"]["hopper"];
+  EXPECT_EQ(hopper["friction"].as<double>(), 0.4);
+  EXPECT_EQ(hopper["restitution"].as<double>(), 0.1);
+  EXPECT_EQ(hopper["youngs_modulus"].as<std::string>(), "2 GPa");
+  EXPECT_EQ(hopper["poisson_ratio"].as<double>(), 0.35);
+  EXPECT_EQ(hopper.size(), 4u);
+  const YAML::Node rubber = e.scene["materials"]["rubber"];
+  EXPECT_EQ(rubber["density"].as<std::string>(), "1100 kg/m^3");
+  EXPECT_EQ(rubber["youngs_modulus"].as<std::string>(), "10 MPa");
+  EXPECT_EQ(rubber["poisson_ratio"].as<double>(), 0.49);
+  EXPECT_EQ(rubber.size(), 5u);
+  expect_validates(e);
+  const Exported both =
+      run(work / "cad",
+          parts + "  splitter: {role: splitter, material: steel, density: 1}\n" + kSceneKeys, work);
+  EXPECT_EQ(both.code, 2);
+  EXPECT_NE(both.err.find("annotations.yaml:5:56: parts.splitter.density: both material and "
+                          "density given, expected a material (a materials entry), or material "
+                          "keys for a material of this part alone"),
+            std::string::npos)
+      << both.err;
+}
+
 // Splitter plates tilted as drawn, in float STL coordinates: each a box body
 // of the plate's size, turned as the plate is (up to the box's symmetry).
 TEST(ExportStl, TiltedSplittersAreBoxes) {
