@@ -31,13 +31,21 @@ const std::map<std::string, Role> kRoles = {{"drum", Role::Drum},
                                             {"collector_plane", Role::CollectorPlane},
                                             {"ignore", Role::Ignore}};
 
+// "a drum", "an electrode": the role as messages name it.
+std::string a_role(const std::string& name) {
+  return (name.find_first_of("aeiou") == 0 ? "an " : "a ") + name;
+}
+
 // The keys a part entry may have, by role.
 std::vector<std::string> part_keys(Role role) {
   std::vector<std::string> keys = {"role", "name"};
   const auto add = [&](std::initializer_list<const char*> more) {
     keys.insert(keys.end(), more.begin(), more.end());
   };
-  if (is_body_role(role)) add({"material", "friction", "restitution"});
+  if (is_body_role(role)) {
+    add({"material"});
+    keys.insert(keys.end(), material_keys().begin(), material_keys().end());
+  }
   switch (role) {
     case Role::Drum:
     case Role::Brush:
@@ -47,7 +55,7 @@ std::vector<std::string> part_keys(Role role) {
       add({"shape", "joint"});
       break;
     case Role::Electrode:
-      add({"voltage", "material"});
+      add({"voltage", "type", "mobility", "air_density", "material"});
       break;
     case Role::FeedOutlet:
       add({"normal", "feed"});
@@ -111,17 +119,20 @@ std::optional<double> quantity(const Node& n, std::string_view kind, Diagnostics
 
 // Quantities the exporter passes on where a bare SI number is a likely
 // slip: "voltage: -30" meant as kV is 30 V, "speed: 44.8" meant as rpm is
-// 428 rpm. They need their unit.
-void check_with_unit(const Node& n, std::string_view kind, Diagnostics& diags) {
-  if (!n.is_number()) {
-    (void)quantity(n, kind, diags);
-    return;
-  }
+// 428 rpm, "mobility: 2.1" meant as cm^2/V/s is 10 000 times too much. They
+// need their unit.
+std::optional<double> with_unit(const Node& n, std::string_view kind, Diagnostics& diags) {
+  if (!n.is_number()) return quantity(n, kind, diags);
   const scene::units::Kind* k = scene::units::find_kind(kind);
   const std::string si(k->si);
   diags.error(n, "got " + scene::describe(n) + ", a number without a unit, expected " +
                      std::string(k->label) + " with its unit such as '" + std::string(k->example) +
                      "' ('" + n.text + " " + si + "' if " + si + " are meant)");
+  return std::nullopt;
+}
+
+void check_with_unit(const Node& n, std::string_view kind, Diagnostics& diags) {
+  (void)with_unit(n, kind, diags);
 }
 
 std::optional<Vec3> direction(const Node& n, Diagnostics& diags) {
@@ -160,6 +171,50 @@ void check_number(const Node& n, Diagnostics& diags) {
     diags.error(n, "got " + scene::describe(n) + ", expected a number >= 0");
 }
 
+// A body's material: a materials entry, or keys of its own (friction at
+// least) that make a material of the part's name.
+void check_material(const Node& spec, Role role, Diagnostics& diags) {
+  const auto own = std::find_if(material_keys().begin(), material_keys().end(),
+                                [&](const std::string& k) { return spec.find(k) != nullptr; });
+  if (spec.find("material") && own != material_keys().end())
+    diags.error(*spec.find(*own), "both material and " + *own +
+                                      " given, expected a material (a materials entry), or "
+                                      "material keys for a material of this part alone");
+  else if (!spec.find("material") && !spec.find("friction"))
+    diags.error(spec, a_role(role_name(role)) +
+                          " needs a material (a materials entry) or a friction coefficient");
+}
+
+// A corona wire's keys: the mobility of its ions and the relative density
+// of the air, each checked where a slip is still at its line.
+void check_corona_keys(const Node& spec, Diagnostics& diags) {
+  if (const Node* n = spec.find("mobility")) {
+    const auto v = with_unit(*n, "mobility", diags);
+    if (v && *v <= 0.0)
+      diags.error(*n, "got " + scene::describe(*n) +
+                          ", expected a positive ion mobility such as '2.1 cm^2/V/s'");
+  }
+  if (const Node* n = spec.find("air_density"); n && !(n->is_number() && n->number() > 0.0))
+    diags.error(*n, "got " + scene::describe(*n) +
+                        ", expected a relative air density > 0 such as 1 (1 at 20 degC and 1 atm)");
+}
+
+// An electrode: its voltage, its type, and the corona keys, which only a
+// corona wire takes.
+void check_electrode(const Node& spec, Diagnostics& diags) {
+  if (!spec.find("voltage"))
+    diags.error(spec, "an electrode needs a voltage, such as voltage: -35 kV");
+  const Node* type = spec.find("type");
+  if (type) check_enum(*type, {"static", "corona"}, diags);
+  check_corona_keys(spec, diags);
+  if (type && !(type->is_string() && type->string() == "static")) return;
+  const std::string is = type ? "type: static" : "static (the default type)";
+  for (const char* key : {"mobility", "air_density"})
+    if (const Node* n = spec.find(key))
+      diags.error(*n, std::string(key) + " is a corona wire's, but this electrode is " + is +
+                          ", expected type: corona with it");
+}
+
 // The values the exporter reads itself; the rest goes into the scene, whose
 // schema checks it there.
 void check_part_values(const Node& spec, Role role, Diagnostics& diags) {
@@ -180,18 +235,11 @@ void check_part_values(const Node& spec, Role role, Diagnostics& diags) {
     diags.error(*n, "got " + scene::describe(*n) + ", expected a body name");
   if (spec.find("speed") && spec.find("rpm"))
     diags.error(*spec.find("rpm"), "both speed and rpm given, expected one of them");
-  if (role == Role::Electrode && !spec.find("voltage"))
-    diags.error(spec, "an electrode needs a voltage, such as voltage: -35 kV");
-  if (is_body_role(role) && !spec.find("material") && !spec.find("friction"))
-    diags.error(spec, "a " + std::string(role_name(role)) +
-                          " needs a material (a materials entry) or a friction coefficient");
-  if (spec.find("material") && (spec.find("friction") || spec.find("restitution")))
-    diags.error(spec,
-                "both material and friction/restitution given, expected a material, or "
-                "friction/restitution for a material of this part alone");
+  if (role == Role::Electrode) check_electrode(spec, diags);
+  if (is_body_role(role)) check_material(spec, role, diags);
   if (const Node* j = spec.find("joint");
       j && expect_map(*j, "a mapping of joint settings", diags)) {
-    check_keys(*j, joint_keys(role), "the joint of a " + std::string(role_name(role)), diags);
+    check_keys(*j, joint_keys(role), "the joint of " + a_role(role_name(role)), diags);
     if (const Node* axis = j->find("axis")) check_direction(*axis, diags);
   }
 }
@@ -212,7 +260,7 @@ std::optional<Rule> read_rule(const Entry& e, Diagnostics& diags) {
                            scene::one_of(role_names()));
     return std::nullopt;
   }
-  check_keys(e.value, part_keys(it->second), "a " + it->first, diags);
+  check_keys(e.value, part_keys(it->second), a_role(it->first), diags);
   check_part_values(e.value, it->second, diags);
   const bool glob = e.key.find_first_of("*?[") != std::string::npos;
   return Rule{e.key, glob, it->second, &e.value, e.key_mark};
@@ -309,6 +357,17 @@ std::optional<Node> parse_file(const std::string& path, Diagnostics& diags) {
 }
 
 }  // namespace
+
+const std::vector<std::string>& material_keys() {
+  static const std::vector<std::string> keys = [] {
+    std::vector<std::string> k;
+    for (const auto& [key, value] :
+         scene::schema().at("definitions").at("material").at("properties").items())
+      k.push_back(key);
+    return k;
+  }();
+  return keys;
+}
 
 const char* role_name(Role role) {
   for (const auto& [name, r] : kRoles)

@@ -28,6 +28,10 @@ enum class Role {
 const char* role_name(Role role);
 bool is_body_role(Role role);
 
+// The keys of a scene material (the schema's): a body's own material, made
+// from its part's entry, takes any of them.
+const std::vector<std::string>& material_keys();
+
 // One entry of `parts:`: a part name or glob and what matching parts are.
 struct Rule {
   std::string pattern;

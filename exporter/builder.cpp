@@ -217,18 +217,17 @@ class Builder {
     return std::nullopt;
   }
 
-  // The named material, or one made for this part from its friction.
+  // The named material, or one made for this part from its material keys.
   Node material(const Placed& p) {
     const Node& spec = *p.rule->spec;
     if (const Node* m = spec.find("material")) return *m;
     const Node* user = a_.root->find("materials");
     if (user && user->find(p.name))
       throw InputError(where(p.rule->mark) + "the material made for " + label(p) +
-                       " from its friction would be called '" + p.name +
+                       " from its material keys would be called '" + p.name +
                        "', but materials has one of that name; expected a material: reference");
     Node made = make(Node::Kind::Map, p.rule->mark);
-    put_copy(made, "friction", spec.find("friction"));
-    put_copy(made, "restitution", spec.find("restitution"));
+    for (const std::string& key : material_keys()) put_copy(made, key, spec.find(key));
     put(section("materials", Node::Kind::Map), p.name, std::move(made));
     return scene::from_json(p.name, p.rule->mark);
   }
@@ -348,6 +347,8 @@ class Builder {
     Node e = scene::from_json(json{{"name", p.name}, {"polar", polar}, {"radius", tidy(c.radius)}},
                               p.rule->mark);
     put(e, "voltage", *p.rule->spec->find("voltage"));
+    for (const char* key : {"type", "mobility", "air_density"})
+      put_copy(e, key, p.rule->spec->find(key));
     return e;
   }
 

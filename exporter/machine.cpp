@@ -6,6 +6,7 @@
 
 #include "format.hpp"
 #include "scene/diagnostics.hpp"
+#include "scene/electrostatics.hpp"
 #include "scene/scene.hpp"
 
 namespace ces::exporter {
@@ -161,6 +162,19 @@ void place_splitter(Placed& p, std::vector<std::string>& warnings) {
                      (p.box_fit ? "not a box: " + box_misfit(*p.box_fit) : "kept as a mesh"));
 }
 
+// A corona wire thicker than the scene allows never ionises: refused at
+// its rule with the cylinder the part gave, before the scene loader would.
+void check_wire(const Placed& p) {
+  const scene::Node* type = p.rule->spec->find("type");
+  if (!type || type->string() != "corona" || p.cylinder->radius <= scene::kMaxCoronaWireRadius)
+    return;
+  throw InputError(where(type->mark) + type->path + ": " + label(p) + " has a radius of " +
+                   metres(p.cylinder->radius) + " (" +
+                   (p.cylinder_source == "step" ? "exact STEP surface" : "fitted") +
+                   "), too thick to ionise: expected a corona wire of radius at most " +
+                   metres(scene::kMaxCoronaWireRadius) + ", or type: static for a field electrode");
+}
+
 Placed place(const Part& part, const Rule& rule, const Annotations& a, Names& names,
              std::vector<std::string>& warnings) {
   Placed p;
@@ -183,6 +197,7 @@ Placed place(const Part& part, const Rule& rule, const Annotations& a, Names& na
     case Role::Electrode:
       if (!recover_cylinder(p, a.fit_tolerance, warnings))
         throw InputError(label(p) + " is not a cylinder, which an electrode must be");
+      check_wire(p);
       p.output = Output::Electrode;
       break;
     case Role::FeedOutlet:

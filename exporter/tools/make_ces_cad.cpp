@@ -1,9 +1,11 @@
 // Writes meshes/ces/ces_machine.step: the reference machine of
-// scenes/machines/ces_machine.yaml as a CAD user would export it, so the
-// round trip (CAD + annotations -> scene -> run) can be checked against the
+// scenes/machines/ces_machine.yaml and ces_splitters.yaml (drum, brush,
+// splitters, the static electrode and the corona wire, the feed's outlet and
+// the collector's plate) as a CAD user would export it, so the round trip
+// (CAD + annotations -> scene -> run) can be checked against the
 // hand-written scene. Drawn like CAD, not like the scene: millimetres, z up,
-// the drum axis along -y, the origin on the floor 800 mm below the drum
-// axis and 500 mm behind it, each part at its own origin and placed by the
+// the drum axis along -y, the origin on the floor 800 mm below the drum axis
+// and 500 mm behind it, each part at its own origin and placed by the
 // assembly.
 //
 //   cmake --build build --target make_ces_cad && build/exporter/make_ces_cad
@@ -42,6 +44,12 @@ gp_Trsf at(double x, double y, double degrees = 0.0) {
   return scene_to_cad() * move * turn;
 }
 
+// A part on the drum's axis' polar grid, as the scene places electrodes.
+gp_Trsf at_polar(double distance, double degrees) {
+  const double a = degrees * M_PI / 180.0;
+  return at(distance * std::cos(a), distance * std::sin(a));
+}
+
 // Solids centred on their own origin, cylinders along z.
 TopoDS_Shape cylinder(double radius, double length) {
   return BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(0, 0, -0.5 * length), gp::DZ()), radius, length)
@@ -73,17 +81,20 @@ int main(int argc, char** argv) {
   const Handle(XCAFDoc_ShapeTool) tool = XCAFDoc_DocumentTool::ShapeTool(doc->Main());
   const TDF_Label machine = tool->NewShape();
   TDataStd_Name::Set(machine, "ces_machine");
-  // In the order of scenes/machines/ces_machine.yaml: body order decides
-  // the order of contacts, so the same order gives the same run.
+  // In the order of scenes/machines/ces_machine.yaml, then
+  // ces_splitters.yaml: body order decides the order of contacts, and
+  // electrode order that of the field's line charges, so the same order
+  // gives the same run.
   add(tool, machine, "drum", cylinder(160, 300), at(0, 0));
   add(tool, machine, "brush", cylinder(53, 300), at(-213, 0));
-  add(tool, machine, "splitter_1", box(4, 107, 303), at(146.5, -153.5));
-  add(tool, machine, "splitter_2", box(4, 150, 300), at(237.7, -140.9, 27));
-  const double a = 30.0 * M_PI / 180.0;
-  add(tool, machine, "electrode", cylinder(19, 300), at(267 * std::cos(a), 267 * std::sin(a)));
+  add(tool, machine, "splitter_1", box(4, 107, 303), at(160.35, -155.32, -15));
+  add(tool, machine, "splitter_2", box(4, 150, 300), at(269.1, -140.9, 27));
+  add(tool, machine, "electrode", cylinder(19, 300), at_polar(267, 30));
+  add(tool, machine, "wire", cylinder(0.1, 300), at_polar(210.1, 75));
   add(tool, machine, "nozzle_outlet", box(100, 2, 182), at(-66, 184));
-  add(tool, machine, "collector", box(800, 2, 500), at(100, -210));
-  add(tool, machine, "stand", box(900, 20, 600), at(100, -240));
+  // The collector plate spans the bins, from behind splitter 1 to the casing.
+  add(tool, machine, "collector", box(1200, 2, 500), at(300, -210));
+  add(tool, machine, "stand", box(1300, 20, 600), at(300, -240));
   tool->UpdateAssemblies();
   Interface_Static::SetCVal("xstep.cascade.unit", "MM");  // drawn in mm, written in mm
   Interface_Static::SetCVal("write.step.unit", "MM");

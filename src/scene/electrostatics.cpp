@@ -220,12 +220,6 @@ class ElectrostaticsCompiler {
 
   // ------------------------------------------------------------ corona wires
 
-  // A wire this thick never ionises at separator voltages (Peek's onset
-  // field grows as the radius shrinks, but the surface field of a thick
-  // electrode falls faster); the corona laws of docs/physics.md §4 are for
-  // wires of a few tenths of a millimetre.
-  static constexpr double kMaxWireRadius = 1e-3;
-
   std::vector<fields::CoronaBand> corona_bands(const fields::Drum& drum,
                                                const fields::ElectricField& field,
                                                const std::vector<NamedElectrode>& electrodes) {
@@ -247,10 +241,10 @@ class ElectrostaticsCompiler {
                                  "wire, expected field.model: line_charges");
       return std::nullopt;
     }
-    if (wire.radius > kMaxWireRadius) {
+    if (wire.radius > kMaxCoronaWireRadius) {
       diags_.error(e.at("radius"), "a corona wire of radius " + millimetres(wire.radius) +
                                        " does not ionise, expected a radius of at most " +
-                                       millimetres(kMaxWireRadius));
+                                       millimetres(kMaxCoronaWireRadius));
       return std::nullopt;
     }
     const std::string polarity = wire.potential < 0.0 ? "negative" : "positive";

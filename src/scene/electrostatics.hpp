@@ -19,6 +19,12 @@ namespace ces::scene {
 
 class Diagnostics;
 
+// A wire thicker than this never ionises at separator voltages (Peek's onset
+// field grows as the radius shrinks, but the surface field of a thick
+// electrode falls faster); the corona laws of docs/physics.md §4 are for
+// wires of a few tenths of a millimetre. Metres.
+inline constexpr double kMaxCoronaWireRadius = 1e-3;
+
 struct ElectrostaticsInput {
   const Node& section;    // electrostatics
   const Node* materials;  // the materials section, or null

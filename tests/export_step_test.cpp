@@ -1,0 +1,126 @@
+// ces-export on STEP assemblies written here with OpenCASCADE: exact
+// cylinders, boxes and meshes from the assembly, the file's unit, and a file
+// that is not STEP. Only in a build with OpenCASCADE.
+#ifdef CES_EXPORT_HAVE_OCCT
+#include <gtest/gtest.h>
+
+#include <BRepPrimAPI_MakeBox.hxx>
+#include <BRepPrimAPI_MakeCylinder.hxx>
+#include <Interface_Static.hxx>
+#include <Message.hxx>
+#include <Message_Messenger.hxx>
+#include <Message_PrinterOStream.hxx>
+#include <STEPCAFControl_Writer.hxx>
+#include <TDataStd_Name.hxx>
+#include <TDocStd_Document.hxx>
+#include <XCAFApp_Application.hxx>
+#include <XCAFDoc_DocumentTool.hxx>
+#include <XCAFDoc_ShapeTool.hxx>
+#include <fstream>
+
+#include "export_support.hpp"
+#include "support.hpp"
+
+namespace {
+
+using namespace ces::export_test;
+using ces::kPi;
+using ces::Vec3;
+using ces::test::fresh_dir;
+using ces::test::read_text;
+
+struct StepPart {
+  const char* name;
+  TopoDS_Shape shape;
+};
+
+double millimetres_per(const std::string& unit) {
+  return unit == "M" ? 1000.0 : unit == "INCH" ? 25.4 : 1.0;
+}
+
+// A STEP assembly of named parts, as XDE (and CAD programs) write it.
+void write_step(const fs::path& path, const std::vector<StepPart>& parts, const char* unit = "MM") {
+  Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_PrinterOStream));
+  Handle(XCAFApp_Application) app = XCAFApp_Application::GetApplication();
+  Handle(TDocStd_Document) doc;
+  app->NewDocument("MDTV-XCAF", doc);
+  const Handle(XCAFDoc_ShapeTool) tool = XCAFDoc_DocumentTool::ShapeTool(doc->Main());
+  const TDF_Label assembly = tool->NewShape();
+  TDataStd_Name::Set(assembly, "machine");
+  for (const StepPart& p : parts) {
+    const TDF_Label label = tool->AddShape(p.shape, false);
+    TDataStd_Name::Set(label, p.name);
+    tool->AddComponent(assembly, label, TopLoc_Location());
+  }
+  tool->UpdateAssemblies();
+  // The shapes are drawn in `unit`: the session and the document say so
+  // (the exporter sets the session to metres for its reading), and the
+  // file is written in it.
+  Interface_Static::SetCVal("xstep.cascade.unit", unit);
+  Interface_Static::SetCVal("write.step.unit", unit);
+  XCAFDoc_DocumentTool::SetLengthUnit(doc, millimetres_per(unit),
+                                      UnitsMethods_LengthUnit_Millimeter);
+  STEPCAFControl_Writer writer;
+  ASSERT_TRUE(writer.Transfer(doc, STEPControl_AsIs));
+  ASSERT_EQ(writer.Write(path.c_str()), IFSelect_RetDone);
+  app->Close(doc);
+}
+
+// The STL machine's parts in a unit of `per_mm` per millimetre, the drum
+// along x this time, centred on (0, 20, 30) mm.
+std::vector<StepPart> step_machine(double per_mm = 1.0) {
+  const double s = per_mm;
+  return {
+      {"drum", BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(-150 * s, 20 * s, 30 * s), gp::DX()), 160 * s,
+                                        300 * s)
+                   .Shape()},
+      {"hopper",
+       BRepPrimAPI_MakeBox(gp_Pnt(-50 * s, 170 * s, -50 * s), 40 * s, 30 * s, 100 * s).Shape()},
+      {"splitter",
+       BRepPrimAPI_MakeBox(gp_Pnt(150 * s, -160 * s, -150 * s), 2 * s, 100 * s, 300 * s).Shape()}};
+}
+
+TEST(ExportStep, AssemblyGivesAnExactDrumAndAMeshHopper) {
+  const fs::path work = fresh_dir("export_step");
+  write_step(work / "machine.step", step_machine());
+  const Exported e = run(work / "machine.step", machine_annotations("[-1, 0, 0]"), work);
+  ASSERT_EQ(e.code, 0) << e.err;
+  const YAML::Node drum = body(e, "drum");
+  ASSERT_TRUE(drum["geometry"]["cylinder"]) << drum;
+  EXPECT_NEAR(drum["geometry"]["cylinder"]["radius"].as<double>(), 0.16, 1e-9);
+  EXPECT_NEAR(drum["geometry"]["cylinder"]["length"].as<double>(), 0.30, 1e-9);
+  EXPECT_LT((vec(drum["pose"]["axis"]) - Vec3::UnitX()).norm(), 1e-9);
+  EXPECT_LT((vec(drum["pose"]["position"]) - Vec3(0, 0.02, 0.03)).norm(), 1e-9);
+  EXPECT_LT((vec(drum["motion"]["rotation"]["axis"]) + Vec3::UnitX()).norm(), 1e-12);
+  EXPECT_EQ(drum["motion"]["rotation"]["speed"].as<std::string>(), "44.8 rpm");
+  EXPECT_EQ(report_part(e, "drum")["cylinder"]["source"], "exact STEP surface");
+  expect_hopper(e);
+  expect_splitter_box(e);
+  // OpenCASCADE's banners stay off stdout, which is the report.
+  EXPECT_EQ(e.out.find("****"), std::string::npos) << e.out;
+  EXPECT_NE(e.out.find("exact STEP surface"), std::string::npos) << e.out;
+  expect_validates(e);
+}
+
+TEST(ExportStep, FileUnitsAreConvertedToMetres) {
+  for (const auto& [unit, per_mm] : {std::pair{"M", 1e-3}, std::pair{"INCH", 1 / 25.4}}) {
+    const fs::path work = fresh_dir(std::string("export_step_") + unit);
+    write_step(work / "machine.step", step_machine(per_mm), unit);
+    const Exported e = run(work / "machine.step", machine_annotations("[1, 0, 0]"), work);
+    ASSERT_EQ(e.code, 0) << unit << ": " << e.err;
+    EXPECT_NEAR(body(e, "drum")["geometry"]["cylinder"]["radius"].as<double>(), 0.16, 1e-9) << unit;
+    EXPECT_NEAR(body(e, "drum")["geometry"]["cylinder"]["length"].as<double>(), 0.30, 1e-9) << unit;
+  }
+}
+
+TEST(ExportStep, UnreadableFileIsAnError) {
+  const fs::path work = fresh_dir("export_step_bad");
+  std::ofstream(work / "broken.step") << "ISO-10303-21;\nthis is not STEP\n";
+  const Exported e = run(work / "broken.step", machine_annotations("[1, 0, 0]"), work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find("cannot read"), std::string::npos) << e.err;
+  expect_nothing_written(e);
+}
+
+}  // namespace
+#endif
