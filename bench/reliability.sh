@@ -1,7 +1,8 @@
 #!/bin/bash
 # The figures of docs/reliability.md, measured: inputs fuzzed, crashes,
 # hangs and memory blow-ups per fuzz target, and results lost by runs
-# killed with SIGKILL. Writes bench/out/reliability.txt (and prints it);
+# killed with SIGKILL. Writes bench/out/reliability.txt (and prints it, then
+# the tables bench/reliability_figures.py makes of it);
 # bench/results/reliability.txt is a committed copy. Usage, from the
 # repository root, after `bash .ci/fuzz` (the fuzz build in build-fuzz/) and
 # the Release build in build/:
@@ -101,3 +102,4 @@ done
   echo "# runs killed with SIGKILL at a random moment (uninterrupted run: ${wall%.*} s):"
   echo "kill_trials=$trials killed_while_running=$killed earlier_results_changed=$earlier_lost resumed_results_differing=$resumed_differ"
 } | tee "$report"
+python3 bench/reliability_figures.py "$report"

@@ -1,7 +1,8 @@
 // Runs that survive: a run killed with SIGKILL at a random moment and
 // resumed from its checkpoint writes the bytes the uninterrupted run writes;
 // a run that does not finish never touches an earlier complete run; a run
-// that completes removes only the files the earlier run wrote.
+// that completes removes only the files the earlier run wrote; a file that
+// cannot be written is named in summary.json.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -156,6 +157,47 @@ TEST(Restart, ACompleteRunRemovesOnlyTheEarlierRunsFiles) {
   EXPECT_EQ(read_text(dir / "notes.txt"), "mine");
   EXPECT_TRUE(fs::exists(dir / "bins.csv"));
   EXPECT_FALSE(fs::exists(dir / "partial"));
+}
+
+// Each output that cannot be written is named in the reason, in the order
+// they failed: a frame mid-run (its temporary's place taken by a folder),
+// then bins.csv among the outputs written at the end. A later failure adds
+// to the reason, so the first is never hidden.
+TEST(Restart, AFileThatCannotBeWrittenIsNamedInTheSummary) {
+  const fs::path dir = fresh_dir("unwritable"), partial = dir / "partial";
+  fs::create_directories(partial / "trajectories" / "frame_000002.vtp.tmp" / "x");
+  fs::create_directories(partial / "bins.csv" / "x");
+  const Outcome o = ces_sim(kTiny + " -o " + dir.string() + " --quiet");
+  EXPECT_EQ(o.code, 3) << o.err;
+  const nlohmann::json s = nlohmann::json::parse(read_text(partial / "summary.json"));
+  EXPECT_FALSE(s["complete"].get<bool>());
+  const std::string reason = s["reason"];
+  EXPECT_EQ(reason.rfind("error after ", 0), 0u) << reason;
+  const std::size_t frame = reason.find("trajectories/frame_000002.vtp");
+  ASSERT_NE(frame, std::string::npos) << reason;
+  EXPECT_NE(reason.find("bins.csv", frame), std::string::npos) << reason;
+  EXPECT_NE(o.err.find(reason), std::string::npos) << o.err;
+  EXPECT_FALSE(fs::exists(dir / "summary.json"));
+}
+
+// A complete run whose file cannot take its place in the output folder (a
+// folder of that name is there) moves nothing: the earlier run stays whole,
+// and the summary in partial/ says why, naming the file, as stderr does.
+TEST(Restart, AResultThatCannotBePublishedLeavesTheEarlierRunAndSaysWhy) {
+  const fs::path dir = fresh_dir("unpublished");
+  const std::string run = kTiny + " -o " + dir.string() + " --quiet";
+  ASSERT_EQ(ces_sim(run + " --set output.steps=false").code, 0);
+  const std::string report = read_text(dir / "report.html"), summary = read_text(dir / "summary.json");
+  fs::create_directories(dir / "steps.csv" / "mine");
+  const Outcome o = ces_sim(run);
+  EXPECT_EQ(o.code, 3) << o.err;
+  EXPECT_EQ(read_text(dir / "report.html"), report);
+  EXPECT_EQ(read_text(dir / "summary.json"), summary);
+  const nlohmann::json s = nlohmann::json::parse(read_text(dir / "partial" / "summary.json"));
+  EXPECT_FALSE(s["complete"].get<bool>());
+  const std::string reason = s["reason"];
+  EXPECT_NE(reason.find((dir / "steps.csv").string()), std::string::npos) << reason;
+  EXPECT_NE(o.err.find(reason), std::string::npos) << o.err;
 }
 
 TEST(Restart, ResumeRefusesAMissingOrDamagedCheckpoint) {

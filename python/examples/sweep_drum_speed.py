@@ -1,8 +1,10 @@
 """Copper grade and recovery in the conductor product against drum speed.
 
 The reference separator, fed for 0.1 s and run for 0.7 s at each speed, so
-the sweep takes seconds (scenes/ces_pcb.yaml itself feeds for 2 s and runs
-for 2 s). Recovery here is of the copper collected by then.
+the sweep takes about half a minute (scenes/ces_pcb.yaml itself feeds for
+1 s and runs until every particle is collected). Recovery here is of the
+copper collected by then. The brush turns with the drum, as in the
+machine (scenes/machines/ces_machine.yaml).
 """
 from pathlib import Path
 

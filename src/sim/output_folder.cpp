@@ -39,13 +39,22 @@ void clear_work(const fs::path& work) {
   fs::remove(work, not_empty);
 }
 
+// Names the file that failed as well as the folder: the folder alone does
+// not say which of a run's files to look at.
 void io(const std::string& what, const fs::path& path, const fs::filesystem_error& e) {
-  throw output::IoError("cannot " + what + " " + path.string() + ": " + e.code().message());
+  std::string files;
+  if (!e.path1().empty()) files = " (" + e.path1().string();
+  if (!e.path2().empty()) files += " to " + e.path2().string();
+  if (!files.empty()) files += ")";
+  throw output::IoError("cannot " + what + " " + path.string() + files + ": " +
+                        e.code().message());
 }
 
 }  // namespace
 
 std::vector<std::string> listed_files(const fs::path& summary_json) {
+  std::error_code not_a_file;  // a folder in its place lists nothing
+  if (!fs::is_regular_file(summary_json, not_a_file)) return {};
   std::ifstream in(summary_json);
   if (!in) return {};
   const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
@@ -67,6 +76,12 @@ OutputFolder::OutputFolder(fs::path dir, output::Start start)
 }
 
 void OutputFolder::publish(const std::vector<std::string>& files) const {
+  // A folder where a file goes cannot be replaced: found before any move,
+  // it leaves dir() as it was.
+  for (const std::string& f : files)
+    if (fs::is_directory(dir_ / f))
+      throw output::IoError("cannot move the results into " + dir_.string() + ": " +
+                            (dir_ / f).string() + " is a folder");
   const std::vector<std::string> earlier = listed_files(dir_ / "summary.json");
   try {
     for (const std::string& f : files) {

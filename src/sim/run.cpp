@@ -187,6 +187,7 @@ class Runner {
   bool caller_stops(std::uint64_t steps);
   void checkpoint();
   void write_outputs();
+  void publish(output::RunRecord& r);
   void write_summary(const output::RunRecord& r);
   void write_report(const output::RunRecord& r, const std::string& distribution_svg);
   std::vector<std::string> files() const;
@@ -353,9 +354,13 @@ std::vector<std::string> Runner::files() const {
 void Runner::write_outputs() {
   const auto t0 = Clock::now();
   output::RunRecord r = record();
+  // Each failure names its file; a later one adds to the reason rather than
+  // replacing it, so a disk that fills up mid-run still names the file that
+  // failed first.
   auto failed = [&](const std::exception& e) {
+    reason_ = r.reason = complete_ ? std::string("cannot write the outputs: ") + e.what()
+                                   : reason_ + "; " + e.what();
     complete_ = r.complete = false;
-    reason_ = r.reason = std::string("cannot write the outputs: ") + e.what();
   };
   std::string distribution;
   try {
@@ -382,16 +387,26 @@ void Runner::write_outputs() {
     failed(e);
   }
   write_summary(r);
-  if (complete_) {
-    try {
-      folder_.publish(r.files);
-      r.out_dir = folder_.dir().string();
-    } catch (const std::exception& e) {
-      complete_ = false;
-      reason_ = e.what();
+  if (complete_) publish(r);
+  if (!options_.quiet) output::print_report(r, stdout);
+}
+
+// A complete run's files move into the output folder. When a move fails,
+// the summary left in the work folder says so, instead of "complete". Once
+// summary.json has moved, every result is in place: a failure after it only
+// leaves the work folder behind, which the next run clears.
+void Runner::publish(output::RunRecord& r) {
+  try {
+    folder_.publish(r.files);
+  } catch (const std::exception& e) {
+    if (fs::exists(dir_ / "summary.json")) {
+      complete_ = r.complete = false;
+      reason_ = r.reason = e.what();
+      write_summary(r);
+      return;
     }
   }
-  if (!options_.quiet) output::print_report(r, stdout);
+  r.out_dir = folder_.dir().string();
 }
 
 // report.html, from what summary.json will say but its last figures (the

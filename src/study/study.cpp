@@ -507,6 +507,13 @@ std::string study_table(const std::vector<Axis>& axes, const std::vector<Row>& r
   return out;
 }
 
+// The body says whether the plot loaded, as a run's report says whether its
+// script ran (data-rendered="ok", or data-error): a test opens both in a
+// browser.
+constexpr const char* kPlotLoads =
+    "onload=\"document.body.dataset.rendered = 'ok'\" "
+    "onerror=\"document.body.dataset.error = 'the work-precision plot does not load'\"";
+
 std::string study_report(const std::vector<Case>& cases, const fs::path& reference,
                          const std::string& table, const std::string& svg) {
   std::string links;
@@ -517,9 +524,9 @@ std::string study_report(const std::vector<Case>& cases, const fs::path& referen
   return "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
          "<title>ces-sim study</title>\n<style>body { font: 14px Helvetica, Arial, sans-serif; "
          "margin: 24px auto; max-width: 980px; } img { max-width: 100%; }</style>\n</head>\n"
-         "<body data-rendered=\"ok\">\n<h1>Study</h1>\n<p>reference: " +
-         xml_escaped(reference.string()) + "</p>\n<img alt=\"work-precision\" "
-         "src=\"data:image/svg+xml;base64," + output::base64(svg) + "\">\n<pre>" +
+         "<body>\n<h1>Study</h1>\n<p>reference: " +
+         xml_escaped(reference.string()) + "</p>\n<img alt=\"work-precision\" " +
+         kPlotLoads + " src=\"data:image/svg+xml;base64," + output::base64(svg) + "\">\n<pre>" +
          xml_escaped(table) + "</pre>\n<p>each case's report: " + links + "</p>\n</body>\n</html>\n";
 }
 
