@@ -119,8 +119,8 @@ const StressCase kPassing[] = {
     // wall guard, and body envelopes that allow for impacts with
     // neighbours), no energy gained; grains overlap each other by up to 2.2
     // radii (rebounding grains meet arriving ones 15 m/s apart, the solve
-    // stops at its cap), which the summary reports: "or reported" of issue
-    // 6's criterion. Their overlap with the wall is 0.
+    // stops at its cap), which the summary reports, as a stress case may
+    // instead of meeting the bound. Their overlap with the wall is 0.
     {"impact_plate", "impact_plate.yaml", "", true, true},
     {"impact_mesh", "impact_mesh.yaml", "", true, true},
     // Mass ratio 1:1000 at the scenes' 500 iterations (the scene files say
