@@ -114,5 +114,81 @@ TEST(Yielding, DampingGivesThePairsRestitution) {
   }
 }
 
+// The reference machine's nip: grains carried up between the drum and a
+// brush that touches it (zero gap, surfaces moving opposite at the nip),
+// at the reference scene's 0.25 ms and 25 iterations: spheres of 0.5 mm
+// riding the drum up into the nip at its surface speed, and flakes (19
+// spheres, 1.2 mm wide) falling on edge into the wedge above it. Grains
+// roll in place there, squeezed by the two surfaces.
+struct Nip {
+  double wall = 0.0;   // radii: the worst a grain went into a rigid surface
+  double yield = 0.0;  // m: the most the brush gave
+};
+
+Nip grains_in_the_nip(double brush_compliance) {
+  auto m = std::make_shared<Model>();
+  m->step = 0.25e-3;
+  m->gravity = Vec3(0, -9.81, 0);
+  m->materials = MaterialTable({{"grain", kDensity, 0.5, 0.0, 0.0},
+                                {"steel", 7800.0, 0.5, 0.0, 0.0},
+                                {"bristles", 1000.0, 0.9, 0.0, brush_compliance}},
+                               {});
+  m->shapes.push_back(make_particle_shape({Vec3::Zero()}, {1.0}));
+  const feed::SphereList flake = feed::flake_spheres(0.2);
+  m->shapes.push_back(make_particle_shape(flake.centers, flake.radii));
+  m->solver.max_iterations = 25;
+  m->solver.tolerance = 1e-6;
+  const double R = 0.16, rb = 0.053, omega = 70.0 * 2.0 * kPi / 60.0;
+  RigidBody drum, brush;
+  drum.kind = brush.kind = BodyKind::Kinematic;
+  drum.shape = geo::Cylinder{R, 0.05, 0.0};
+  drum.material = 1;
+  drum.motion.angular_speed = -omega;
+  brush.shape = geo::Cylinder{rb, 0.05, 0.0};
+  brush.material = 2;
+  brush.pose.position = Vec3(-(R + rb), 0, 0);
+  brush.motion.center = brush.pose.position;
+  brush.motion.angular_speed = -omega;
+  m->bodies = {drum, brush};
+  World w(m);
+  const Quat on_edge(Eigen::AngleAxisd(0.5 * kPi, Vec3::UnitY()));
+  auto wedge_x = [&](double y) {  // midway between the two surfaces at height y
+    return 0.5 * (-std::sqrt(R * R - y * y) + (-(R + rb) + std::sqrt(rb * rb - y * y)));
+  };
+  for (int i = 0; i < 6; ++i) {
+    const double y = 0.007 + 0.002 * i, z = -0.03 + 0.012 * i;
+    w.add_particle(1, 1.2e-3, 0, Vec3(wedge_x(y), y, z), on_edge, Vec3(0, -1.0, 0));
+  }
+  for (int i = 0; i < 6; ++i) {
+    const double r = 0.5e-3, a = kPi + 0.06 + 0.02 * i, z = -0.03 + 0.012 * i;
+    const Vec3 c((R + r) * std::cos(a), (R + r) * std::sin(a), z);
+    w.add_particle(0, r, 0, c, Quat::Identity(), Vec3(0, omega * R, 0));
+  }
+  Nip nip;
+  for (int i = 0; i < 800; ++i) {
+    const StepStats& st = w.step();
+    nip.wall = std::max(nip.wall, st.max_wall_penetration_relative);
+    nip.yield = std::max(nip.yield, st.max_yield);
+  }
+  return nip;
+}
+
+// Rigid, the pair leaves no room, and a solve cut at 25 iterations leaves
+// grains more than a tenth of a radius inside a surface (the wall guard
+// bounds it by half a radius: Engine.GrainsStayOutOfAZeroGapNipAtALargeStep).
+// The reference brush's bristles yield (1.6 N/m): the grains part them and
+// the drum keeps them out of the steel to a tenth of a radius, the bound
+// of the reference scene's targets, while the brush gives no more than the
+// widest grain (1.2 mm).
+TEST(Yielding, GrainsPartABrushThatTouchesTheDrum) {
+  const Nip rigid = grains_in_the_nip(0.0);
+  EXPECT_GT(rigid.wall, 0.1) << "the rigid nip no longer pinches: the test shows nothing";
+  EXPECT_EQ(rigid.yield, 0.0);
+  const Nip yielding = grains_in_the_nip(1.0 / 1.6);
+  EXPECT_LE(yielding.wall, 0.1) << "radii into the drum";
+  EXPECT_GT(yielding.yield, 0.0);
+  EXPECT_LE(yielding.yield, 1.2e-3);
+}
+
 }  // namespace
 }  // namespace ces
