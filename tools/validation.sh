@@ -7,7 +7,7 @@
 # the reference separator, the run's wall time with the machine's load
 # while it ran, the two materials' landing densities with their crossings
 # (where the splitters stand), and the sweeps against published trends.
-# One run at a time. Needs a built ces-sim (default build/ces-sim), awk and
+# One run at a time. Needs a built ces-sim (default build/ces-sim), awk, PyYAML and
 # python3.
 # Usage: tools/validation.sh [path/to/ces-sim]
 set -euo pipefail
@@ -74,6 +74,22 @@ landing=$(awk '$2 > 0 || $3 > 0 { printf "| %.3f | %.3f | %.3f |\n", $1, $2, $3 
 crossings=$(awk '{ d = $3 - $2
     if ($1 > 0.16 && d != 0) { if (last != 0 && (d > 0) != (last > 0)) { printf "%s%.4f", sep, 0.5 * ($1 + lastx); sep = ", " }
                                last = d; lastx = $1 } }' <<< "$densities")
+
+# Where splitter 2's edge stands: the centre of its top face, from the
+# run's resolved scene (lengths in m or mm, the angle in deg about +z).
+edge=$(python3 - "$out/ces_pcb/scene.resolved.yaml" <<'PY'
+import math, sys, yaml
+def metres(q):
+    value, unit = str(q).split() if " " in str(q) else (q, "m")
+    return float(value) * {"m": 1.0, "mm": 1e-3}[unit]
+body = next(b for b in yaml.safe_load(open(sys.argv[1]))["bodies"] if b["name"] == "splitter_2")
+x = metres(body["pose"]["position"][0])
+half = 0.5 * metres(body["geometry"]["box"]["size"][1])
+rotation = body["pose"]["rotation"]
+angle = math.radians(float(str(rotation["angle"]).split()[0])) * rotation["axis"][2]
+print(f"{x - half * math.sin(angle):.4f}")
+PY
+)
 
 python3 tools/validation_sweeps.py --sim "$sim" --out "$out/sweeps" --svg docs/validation_sweeps.svg
 minutes=$(( ($(date +%s) - start + 30) / 60 ))
@@ -182,8 +198,9 @@ the height of splitter 2's top edge, y = −0.0734 m: that edge splits what
 falls (a particle passing right of it lands on the plate's upper face or
 beyond and slides into the conductor product). Beyond the drum
 (x > 0.16 m; FR-4 riding the drum crosses the plane nearer) the FR-4 and
-copper densities cross at x = $crossings m;
-\`scenes/machines/ces_splitters.yaml\` puts splitter 2's edge there.
+copper densities cross at x = $crossings m (halfway between the bins
+where the sign changes); \`scenes/machines/ces_splitters.yaml\` stands
+splitter 2's edge (its top face's centre) at x = $edge m.
 The rule places no other splitter: splitter 1 keeps the seed's foot.
 
 | x (m, bin centre) | copper (g per 5 mm) | FR-4 (g per 5 mm) |
