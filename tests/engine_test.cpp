@@ -16,6 +16,7 @@
 #include "dynamics/ccp.hpp"
 #include "sim/world.hpp"
 #include "feed/shapes.hpp"
+#include "nip.hpp"
 #include "support.hpp"
 
 namespace ces {
@@ -298,43 +299,20 @@ TEST(Engine, TumblingClumpStaysOutOfThePlane) {
 // into the wedge above the nip at 1 m/s, standing in it on edge as the
 // scene's did; spheres ride the drum up into the wedge below it. Every
 // grain must stay out of both cylinders (docs/accuracy.md, section 4):
-// bound half a radius. Before the wall guard's sweeps were finished body
-// by body (dynamics/safeguards.cpp) and the guards after the spin cap
-// left clumps' spin alone, a sphere went 4.5 radii into a cylinder here;
-// now 0.23.
+// bound half a radius. It takes the wall guard's sweeps, finished body by
+// body (dynamics/safeguards.cpp), with the guards after the spin cap
+// leaving clumps' spin alone: without them a sphere goes radii into a
+// cylinder here.
 TEST(Engine, GrainsStayOutOfAZeroGapNipAtALargeStep) {
   auto m = base_model({0.5}, 10e-3);
   m->solver.max_iterations = 50;
   m->solver.tolerance = 1e-6;
   const feed::SphereList flake = feed::flake_spheres(0.2);
   m->shapes.push_back(make_particle_shape(flake.centers, flake.radii));
-  const double R = 0.16, rb = 0.053, omega = 44.8 * 2.0 * kPi / 60.0;
-  RigidBody drum, brush;
-  drum.kind = brush.kind = BodyKind::Kinematic;
-  drum.shape = geo::Cylinder{R, 0.05, 0.0};
-  drum.motion.angular_speed = -omega;
-  brush.shape = geo::Cylinder{rb, 0.05, 0.0};
-  brush.pose.position = Vec3(-(R + rb), 0, 0);
-  brush.motion.center = brush.pose.position;
-  brush.motion.angular_speed = -omega;
-  m->bodies = {drum, brush};
+  const double omega = 44.8 * 2.0 * kPi / 60.0;
+  test::add_drum_and_brush(*m, omega, 0, 0);
   World w(m);
-  // Flakes on edge (their plane facing the drum), centred on the bisector
-  // of the wedge where it is 0.5 to 1.5 mm wide, falling into it.
-  const Quat on_edge(Eigen::AngleAxisd(0.5 * kPi, Vec3::UnitY()));
-  auto wedge_x = [&](double y) {  // midway between the two surfaces at height y
-    return 0.5 * (-std::sqrt(R * R - y * y) + (-(R + rb) + std::sqrt(rb * rb - y * y)));
-  };
-  for (int i = 0; i < 6; ++i) {
-    const double y = 0.007 + 0.002 * i, z = -0.03 + 0.012 * i;
-    w.add_particle(1, 1.2e-3, 0, Vec3(wedge_x(y), y, z), on_edge, Vec3(0, -1.0, 0));
-  }
-  // Spheres (r 0.5 mm) on the drum below the nip, moving with its surface.
-  for (int i = 0; i < 6; ++i) {
-    const double r = 0.5e-3, a = kPi + 0.06 + 0.02 * i, z = -0.03 + 0.012 * i;
-    const Vec3 c((R + r) * std::cos(a), (R + r) * std::sin(a), z);
-    w.add_particle(0, r, 0, c, Quat::Identity(), Vec3(0, omega * R, 0));
-  }
+  test::add_nip_grains(w, 1, omega);
   double worst = 0.0;
   for (int i = 0; i < 40; ++i) worst = std::max(worst, w.step().max_wall_penetration_relative);
   EXPECT_EQ(w.particles().size(), 12u);

@@ -11,6 +11,7 @@
 
 #include "feed/shapes.hpp"
 #include "sim/world.hpp"
+#include "nip.hpp"
 #include "support.hpp"
 
 namespace ces {
@@ -138,32 +139,10 @@ Nip grains_in_the_nip(double brush_compliance) {
   m->shapes.push_back(make_particle_shape(flake.centers, flake.radii));
   m->solver.max_iterations = 25;
   m->solver.tolerance = 1e-6;
-  const double R = 0.16, rb = 0.053, omega = 70.0 * 2.0 * kPi / 60.0;
-  RigidBody drum, brush;
-  drum.kind = brush.kind = BodyKind::Kinematic;
-  drum.shape = geo::Cylinder{R, 0.05, 0.0};
-  drum.material = 1;
-  drum.motion.angular_speed = -omega;
-  brush.shape = geo::Cylinder{rb, 0.05, 0.0};
-  brush.material = 2;
-  brush.pose.position = Vec3(-(R + rb), 0, 0);
-  brush.motion.center = brush.pose.position;
-  brush.motion.angular_speed = -omega;
-  m->bodies = {drum, brush};
+  const double omega = 70.0 * 2.0 * kPi / 60.0;
+  test::add_drum_and_brush(*m, omega, 1, 2);
   World w(m);
-  const Quat on_edge(Eigen::AngleAxisd(0.5 * kPi, Vec3::UnitY()));
-  auto wedge_x = [&](double y) {  // midway between the two surfaces at height y
-    return 0.5 * (-std::sqrt(R * R - y * y) + (-(R + rb) + std::sqrt(rb * rb - y * y)));
-  };
-  for (int i = 0; i < 6; ++i) {
-    const double y = 0.007 + 0.002 * i, z = -0.03 + 0.012 * i;
-    w.add_particle(1, 1.2e-3, 0, Vec3(wedge_x(y), y, z), on_edge, Vec3(0, -1.0, 0));
-  }
-  for (int i = 0; i < 6; ++i) {
-    const double r = 0.5e-3, a = kPi + 0.06 + 0.02 * i, z = -0.03 + 0.012 * i;
-    const Vec3 c((R + r) * std::cos(a), (R + r) * std::sin(a), z);
-    w.add_particle(0, r, 0, c, Quat::Identity(), Vec3(0, omega * R, 0));
-  }
+  test::add_nip_grains(w, 1, omega);
   Nip nip;
   for (int i = 0; i < 800; ++i) {
     const StepStats& st = w.step();
