@@ -111,7 +111,7 @@ class ElectrostaticsCompiler {
         continue;
       }
       const auto electrode = read_electrode(e);
-      if (!electrode || (drum && !clear_of_drum(e, name, *electrode, *drum)) ||
+      if (!electrode || !corona_keys_on_corona(e) || (drum && !clear_of_drum(e, name, *electrode, *drum)) ||
           !clear_of_others(e, *electrode, out)) {
         ok_ = false;
         continue;
@@ -120,6 +120,21 @@ class ElectrostaticsCompiler {
       nodes_.push_back(&e);
     }
     return out;
+  }
+
+  // mobility and air_density describe a wire's ions: on a static
+  // electrode nothing would read them, so a scene giving them there has
+  // most likely forgotten type: corona.
+  bool corona_keys_on_corona(const Node& e) {
+    if (e.at("type").string() == "corona") return true;
+    for (const char* key : {"mobility", "air_density"}) {
+      const Node* given = e.find(key);
+      if (!given || given->defaulted) continue;
+      diags_.error(*given, std::string(key) + " is read for a corona electrode only, expected "
+                                              "type: corona on this electrode or no " + key);
+      return false;
+    }
+    return true;
   }
 
   std::optional<fields::Electrode> read_electrode(const Node& e) {

@@ -131,7 +131,10 @@ void add_defaults(Node& n, const ojson* s) {
   if (!props) return;
   for (const auto& [key, sub] : props->items()) {
     const ojson* value = keyword(sub, "default");
-    if (value && !n.find(key)) n.entries.push_back({key, n.mark, from_json(*value, n.mark)});
+    if (!value || n.find(key)) continue;
+    Node filled = from_json(*value, n.mark);
+    filled.defaulted = true;
+    n.entries.push_back({key, n.mark, std::move(filled)});
   }
 }
 

@@ -35,6 +35,7 @@ struct Node {
   std::string path;            // "bodies[0].geometry", see assign_paths
   std::string dimension;       // a unit string's kind after conversion ("speed")
   bool reported = false;       // a diagnostic names this node already
+  bool defaulted = false;      // filled in from the schema's default, not written
 
   bool is_map() const { return kind == Kind::Map; }
   bool is_sequence() const { return kind == Kind::Sequence; }
