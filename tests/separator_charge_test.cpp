@@ -9,6 +9,7 @@
 // is (docs/physics.md §2); θ is measured from the top in the direction of rotation.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <vector>
