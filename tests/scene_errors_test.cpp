@@ -67,6 +67,9 @@ const Expected kExpectations[] = {
      "the wire, expected field.model: line_charges"},
     {"es_corona_reversed.yaml", "es_corona_reversed.yaml", 23,
      "electrostatics.corona[0].to: the sector from 75 deg to 30 deg is empty or reversed"},
+    {"es_corona_keys_on_static.yaml", "es_corona_keys_on_static.yaml", 23,
+     "electrostatics.electrodes[0].mobility: mobility is read for a corona electrode only, "
+     "expected type: corona on this electrode or no mobility"},
     {"es_corona_thick_wire.yaml", "es_corona_thick_wire.yaml", 22,
      "electrostatics.electrodes[0].radius: a corona wire of radius 5 mm does not ionise, expected "
      "a radius of at most 1 mm"},
