@@ -25,14 +25,12 @@ Vec3 point_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, int 
 //   v_n + gap / (h + c / k) + gamma / (h (k h + c)) = 0  while it presses.
 // The dashpot's damping ratio zeta is the pair's (spring_damping_ratio: it
 // gives the pair's restitution), at the row's effective mass
-// 1 / normal_mass. An open gap is
-// closed as a rigid contact's (gap / h) and the spring takes what the step
-// would leave overlapping.
+// 1 / normal_mass. An open gap is closed as a rigid contact's (gap / h) and
+// the spring takes what the step would leave overlapping.
 struct SoftRow {
   double softness = 0.0, bias = 0.0;
 };
 SoftRow soft_row(double compliance, double zeta, double normal_mass, double gap, double h) {
-  if (!(compliance > 0.0)) return {};
   const double k = 1.0 / compliance;
   const double c = normal_mass > 0.0 ? 2.0 * zeta * std::sqrt(k / normal_mass) : 0.0;
   return {1.0 / (h * (k * h + c)), gap < 0.0 ? gap / (h + c / k) : gap / h};
@@ -149,9 +147,11 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     const Vec3 nw = normal(k);  // the rounded row the kernel applies
     const double normal_mass =
         row_mass(B, a_[k], nw, lever_a(k).cross(nw)) + row_mass(B, b_[k], nw, lever_b(k).cross(nw));
-    const SoftRow soft = soft_row(c.compliance[k], c.damping_ratio[k], normal_mass, c.gap[k], h);
-    softness_[k] = soft.softness;
-    bias_[k] = c.compliance[k] > 0.0 ? soft.bias : rigid_bias(c, k, B, h, settings);
+    const SoftRow row = c.compliance[k] > 0.0 ? soft_row(c.compliance[k], c.damping_ratio[k],
+                                                         normal_mass, c.gap[k], h)
+                                              : SoftRow{0.0, rigid_bias(c, k, B, h, settings)};
+    softness_[k] = row.softness;
+    bias_[k] = row.bias;
     diag_max = std::max(diag_max, normal_mass + softness_[k]);
     const double bound =
         block_scale(a_[k], lever_a(k)) + block_scale(b_[k], lever_b(k)) + softness_[k];

@@ -134,16 +134,19 @@ class CcpProblem {
   // -(gap + h v_n). g in world rows (the APGD kernel's) or in the
   // contacts' frames.
   bool overlaps_within(ConstSpan g, bool world, double tolerance) const;
-  // g += E x for x in the contacts' frames: a yielding contact's normal row
-  // carries its softness times its impulse (below).
-  void add_softness(ConstSpan x, Span g) const;
   // Upper bound on the largest eigenvalue of N (Gershgorin-like, cheap).
   double diagonal_max() const { return diag_max_; }
 
-  // g = J v + b for velocities v, w: the gradient N x + r when v, w are
-  // velocities(x), without the scatter again, but for the yielding
-  // contacts' E x (add_softness).
-  void gradient_at(const std::vector<Vec3>& v, const std::vector<Vec3>& w, Span g) const {
+  // The gradient (N + E) x + r when v, w are velocities(x), without the
+  // scatter again: J v + b, and the yielding contacts' E x.
+  void gradient_at(const std::vector<Vec3>& v, const std::vector<Vec3>& w, ConstSpan x,
+                   Span g) const {
+    gather(v, w, true, g);
+    add_softness(x, g);
+  }
+  // J v + b alone: r where v, w are the velocities of impulses with no
+  // contact part (the joints' alone).
+  void rows_at(const std::vector<Vec3>& v, const std::vector<Vec3>& w, Span g) const {
     gather(v, w, true, g);
   }
   // Final velocities v_free + M^-1 J^T x.
@@ -343,6 +346,9 @@ class CcpProblem {
   std::vector<std::uint8_t> soft_block_;
   std::vector<std::uint32_t> soft_;
   void mark_soft_blocks();
+  // g += E x for x in the contacts' frames: a yielding contact's normal row
+  // carries its softness times its impulse.
+  void add_softness(ConstSpan x, Span g) const;
   double step_ = 0.0;  // h, for overlaps_within
   // APGD's metric, per block of four contacts: their step weights w, then
   // the bounds 1 / w (apgd_step scales the step by w and |d|^2 by 1 / w:

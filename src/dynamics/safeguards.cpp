@@ -299,9 +299,8 @@ void make_safe(Guard& c, StepStats& stats) {
     // keep their impulses.
     const Span r = c.scratch.take_bias(rows);
     problem.row_velocities(gamma, c.scratch.base_v, c.scratch.base_w);
-    problem.gradient_at(c.scratch.base_v, c.scratch.base_w, r);  // at the joints' impulses alone
-    problem.gradient_at(v, w, g);              // N x + r, from the velocities of x
-    problem.add_softness(gamma, g);
+    problem.rows_at(c.scratch.base_v, c.scratch.base_w, r);  // at the joints' impulses alone
+    problem.gradient_at(v, w, gamma, g);  // (N + E) x + r, from the velocities of x
     // r.x and x.Nx in fixed chunks: the same bits for any thread count.
     struct Sums {
       double rx = 0.0, xnx = 0.0;
@@ -337,8 +336,7 @@ void make_safe(Guard& c, StepStats& stats) {
     changed = true;
   }
   if (changed) {
-    problem.gradient_at(v, w, g);
-    problem.add_softness(gamma, g);
+    problem.gradient_at(v, w, gamma, g);
     stats.solver.residual = problem.residual(gamma, g);
   }
 }

@@ -111,7 +111,8 @@ class ElectrostaticsCompiler {
         continue;
       }
       const auto electrode = read_electrode(e);
-      if (!electrode || !corona_keys_on_corona(e) || (drum && !clear_of_drum(e, name, *electrode, *drum)) ||
+      if (!electrode || !corona_keys_on_corona(e) ||
+          (drum && !clear_of_drum(e, name, *electrode, *drum)) ||
           !clear_of_others(e, *electrode, out)) {
         ok_ = false;
         continue;
