@@ -5,13 +5,14 @@
 // spring-dashpot's restitution, with every solver.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
-#include <string>
 
 #include "feed/shapes.hpp"
-#include "sim/world.hpp"
 #include "nip.hpp"
+#include "sim/world.hpp"
 #include "support.hpp"
 
 namespace ces {
