@@ -3,8 +3,8 @@
 # own settings and a converged reference of it (half the step, 200
 # iterations), and writes the error of the products and of the landing
 # distributions against the reference, with the cost of each run and the
-# overlaps each left. The reference takes five times the defaults' time. Needs a built ces-sim (default build/ces-sim) and
-# python3.
+# overlaps each left. The reference takes five times the defaults' time.
+# Needs a built ces-sim (default build/ces-sim) and python3.
 # Usage: tools/accuracy.sh [path/to/ces-sim]
 set -euo pipefail
 cd "$(dirname "$0")/.."
