@@ -168,6 +168,32 @@ TEST(Engine, RaftInMeshCornerKeepsContactsOnBothFaces) {
   EXPECT_GT(w->particles().position[0].x(), -0.01 * r);
 }
 
+// A raft rocking on a round bar: its spheres' gaps to the bar grow with
+// the square of their distance from the line of contact, so those beside
+// the deepest are nearer than the hull's corners would have them, and the
+// corners and the deepest alone do not hold them as it rocks. With the
+// solve converged, no sphere may end a step in the bar by more than the
+// penetration tolerance (0.1 of a radius); with the corners and the
+// deepest alone, one does by 0.12.
+TEST(Engine, RaftRockingOnABarKeepsItsSpheresOut) {
+  const double r = 0.001, h = 0.25e-3;
+  auto m = base_model({0.0}, h);
+  m->gravity = Vec3(0, -g0, 0);
+  m->solver.max_iterations = 2000;
+  m->solver.tolerance = 1e-7;
+  RigidBody bar;
+  bar.name = "bar";
+  bar.shape = geo::Cylinder{15 * r, 0.05, 0.0};
+  m->bodies.push_back(bar);
+  auto w = raft_on(m, r);
+  Particles& p = w->particles();
+  p.position[0] = Vec3(0, 16 * r, 0);
+  p.angular_velocity[0] = Vec3(0, 0, 300.0);
+  double worst = 0.0;
+  for (int i = 0; i < 40; ++i) worst = std::max(worst, w->step().max_wall_penetration_relative);
+  EXPECT_LE(worst, m->solver.penetration_tolerance + 1e-6);
+}
+
 // A sphere launched sliding without spin ends rolling at 5/7 of its speed
 // (angular momentum about the contact point is conserved). Tolerance 1 %.
 TEST(Engine, SlidingSphereEndsRollingAtFiveSevenths) {

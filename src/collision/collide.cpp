@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <span>
 #include <tuple>
 
@@ -44,38 +45,65 @@ void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double 
   out.push_back({n, ca + n * (ra + 0.5 * gap), gap, std::min(ra, rb), key});
 }
 
+// The hull of a group's members across its normal: their points in the
+// plane (`at`, by candidate) and its corners in order, counter-clockwise
+// (the first and the last corner of each chain appear twice).
+struct Hull {
+  std::vector<std::array<double, 2>> at;
+  std::vector<std::size_t> corners;
+
+  // Twice the signed area of the triangle (o, a, b) of candidates.
+  double cross(std::size_t o, std::size_t a, std::size_t b) const {
+    return (at[a][0] - at[o][0]) * (at[b][1] - at[o][1]) -
+           (at[a][1] - at[o][1]) * (at[b][0] - at[o][0]);
+  }
+  // `value` (one per corner) interpolated linearly at candidate k, on the
+  // fan of triangles from the first corner; `outside` if no triangle holds
+  // k (a hull with no area: members in a line).
+  double interpolate(std::size_t k, const std::vector<double>& value, double outside) const;
+};
+
+double Hull::interpolate(std::size_t k, const std::vector<double>& value, double outside) const {
+  constexpr double kEdge = 1e-9;  // of the triangle's area: a point on an edge is in it
+  const std::size_t o = corners[0];
+  for (std::size_t i = 1; i + 1 < corners.size(); ++i) {
+    const std::size_t a = corners[i], b = corners[i + 1];
+    const double area = cross(o, a, b);
+    if (!(area > 0.0)) continue;
+    const double s = cross(o, k, b) / area, t = cross(o, a, k) / area;
+    if (s < -kEdge || t < -kEdge || s + t > 1.0 + kEdge) continue;
+    return (1.0 - s - t) * value[0] + s * value[i] + t * value[i + 1];
+  }
+  return outside;
+}
+
 // A group's kept: the deepest and the corners of the members' convex hull
 // in the plane across the group's normal (Andrew's monotone chain, members
 // ordered by position, ties by contact order, so the choice is the same
-// whatever the gaps). A rigid face's velocity along the normal is affine
-// across the face, so rows that hold at the hull's corners hold at every
-// member inside it: a tumbling flake cannot swing an edge sphere into the
-// drum unseen, as it can past a few points that span the face only.
+// whatever the gaps). Fills `hull` for keep_unheld.
 void hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> members,
-                 std::vector<std::uint8_t>& keep) {
+                 Hull& hull, std::vector<std::uint8_t>& keep) {
   std::size_t deepest = members[0];
   for (std::size_t k : members)
     if (c[k].gap < c[deepest].gap) deepest = k;
   keep[deepest] = 1;
   const Vec3& n = c[members[0]].normal;
   const Vec3 u = n.unitOrthogonal(), v = n.cross(u);
-  static thread_local std::vector<std::array<double, 2>> at;
-  static thread_local std::vector<std::size_t> order, chain;
+  std::vector<std::array<double, 2>>& at = hull.at;
+  std::vector<std::size_t>& chain = hull.corners;
+  static thread_local std::vector<std::size_t> order;
   at.resize(c.size());
   for (std::size_t k : members) at[k] = {c[k].point.dot(u), c[k].point.dot(v)};
   order.assign(members.begin(), members.end());
   std::sort(order.begin(), order.end(),
             [&](std::size_t a, std::size_t b) { return std::tie(at[a], a) < std::tie(at[b], b); });
-  auto turns_left = [&](std::size_t o, std::size_t a, std::size_t b) {
-    return (at[a][0] - at[o][0]) * (at[b][1] - at[o][1]) -
-               (at[a][1] - at[o][1]) * (at[b][0] - at[o][0]) > 0.0;
-  };
   // Lower hull left to right, then upper hull right to left.
   chain.clear();
   for (int pass = 0; pass < 2; ++pass) {
     const std::size_t floor = chain.size();
     for (std::size_t k : order) {
-      while (chain.size() >= floor + 2 && !turns_left(chain[chain.size() - 2], chain.back(), k))
+      while (chain.size() >= floor + 2 &&
+             !(hull.cross(chain[chain.size() - 2], chain.back(), k) > 0.0))
         chain.pop_back();
       chain.push_back(k);
     }
@@ -84,15 +112,59 @@ void hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> m
   for (std::size_t k : chain) keep[k] = 1;
 }
 
+// The motion of a pair's B side relative to its A side at the step's
+// start: how far a point of B moves against A in one step.
+struct PairMotion {
+  Vec3 xa, va, wa, xb, vb, wb;
+  double h;
+  double travel(const Vec3& p) const {
+    return h * (vb + wb.cross(p - xb) - va - wa.cross(p - xa)).norm();
+  }
+};
+
+// The members the kept rows of a group do not hold. Across a rigid face the
+// normal velocity is affine, so where the kept rows hold (each closes by at
+// most its gap) the group's normal closes, at a member inside the hull, by
+// at most the corners' gaps interpolated there. That bounds the member's
+// own row only as far as the normals are the group's: turned by |n - n_g|,
+// a row also takes that much of the pair's travel across it (each side's
+// slack). And the gaps themselves are affine only between flat surfaces:
+// between two flakes' spheres a member can be nearer than the corners
+// around it. A member that could so end overlapping by more than
+// penetration_tolerance with every kept row met (two flakes spinning
+// against each other in the brush nip) is kept too; a flat face on a wall
+// keeps its corners alone.
+void keep_unheld(const std::vector<Candidate>& c, std::span<const std::size_t> members,
+                 const Hull& hull, const PairMotion& motion, double tolerance,
+                 std::vector<std::uint8_t>& keep) {
+  const Vec3& n_g = c[members[0]].normal;
+  auto slack = [&](std::size_t k) {
+    return (c[k].normal - n_g).norm() * motion.travel(c[k].point);
+  };
+  static thread_local std::vector<double> closing;  // per corner: gap + slack
+  closing.resize(hull.corners.size());
+  double most = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < hull.corners.size(); ++i) {
+    closing[i] = c[hull.corners[i]].gap + slack(hull.corners[i]);
+    most = std::max(most, closing[i]);
+  }
+  for (std::size_t k : members) {
+    if (keep[k]) continue;
+    const double allowed = c[k].gap - slack(k) + tolerance * c[k].radius;
+    if (allowed < most && allowed < hull.interpolate(k, closing, most)) keep[k] = 1;
+  }
+}
+
 // A flat face resting on another touches it with many of its spheres at
 // once (a flake lying on the drum: 19). The corners of the face's hull hold
 // it as well and cost less, so per group of nearly parallel normals a
-// pair's candidates keep the deepest (it carries the overlap) and the
-// hull's corners (hull_points; manifold reduction, as Box2D and Jolt do
-// it). A group with other normals (a corner) keeps its own. The kept go to
-// `out` in the candidates' order.
+// pair's candidates keep the deepest (it carries the overlap), the hull's
+// corners (hull_points; manifold reduction, as Box2D and Jolt do it) and
+// the members those cannot hold (keep_unheld). A group with other normals
+// (a corner) keeps its own. The kept go to `out` in the candidates' order.
 void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
-                     const SurfacePair& surfaces, Contacts& out) {
+                     const SurfacePair& surfaces, const PairMotion& motion, double tolerance,
+                     Contacts& out) {
   constexpr std::size_t kKeep = 5;
   constexpr double kSameNormal = 0.95;  // cos 18°
   const std::size_t n = c.size();
@@ -103,6 +175,7 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
     for (const Candidate& k : c) push(k);
     return;
   }
+  static thread_local Hull hull;
   static thread_local std::vector<int> group;
   static thread_local std::vector<std::uint8_t> keep;
   static thread_local std::vector<std::size_t> by_group, start, fill, leader;
@@ -140,7 +213,8 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
       for (std::size_t k : members) keep[k] = 1;
       continue;
     }
-    hull_points(c, members, keep);
+    hull_points(c, members, hull, keep);
+    keep_unheld(c, members, hull, motion, tolerance, keep);
   }
   for (std::size_t k = 0; k < n; ++k)
     if (keep[k]) push(c[k]);
@@ -274,6 +348,7 @@ void Collider::narrowphase(const Model& model, const Particles& p, const Bodies&
 
 void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& out) {
   const auto& mat = model.materials;
+  const double h = model.step, tolerance = model.solver.penetration_tolerance;
   run_chunked(pairs_.size(), chunks_, out, used_, [&](std::size_t begin, std::size_t end, Contacts& part) {
     static thread_local std::vector<Candidate> candidates;  // kept across steps
     for (std::size_t k = begin; k < end; ++k) {
@@ -303,7 +378,9 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
           sphere_sphere(ca, sci * si.radii[a], cb, scj * sj.radii[b], envelope, key, candidates);
         }
       }
-      reduce_manifold(candidates, i, j, surfaces, part);
+      const PairMotion motion{p.position[ui], p.velocity[ui], p.angular_velocity[ui],
+                              p.position[uj], p.velocity[uj], p.angular_velocity[uj], h};
+      reduce_manifold(candidates, i, j, surfaces, motion, tolerance, part);
     }
   });
 }
@@ -328,6 +405,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   const Mat3 to_world = pose.orientation.toRotationMatrix();
   auto local = [&](const Vec3& x) -> Vec3 { return to_local * (x - pose.position); };
   const int solver_index = int(p.size()) + body;
+  const double tolerance = model.solver.penetration_tolerance;
   const auto& mat = model.materials;
   run_chunked(p.size(), chunks_, out, used_, [&](std::size_t begin, std::size_t end, Contacts& part) {
     // Per thread and kept across steps: no allocation per chunk.
@@ -370,7 +448,9 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
           candidates.push_back({n, c - n * (r + 0.5 * gap), gap, r, key});
         }
       }
-      reduce_manifold(candidates, solver_index, int(i), surfaces, part);
+      const PairMotion motion{pose.position,  v_body, w_body, p.position[i], p.velocity[i],
+                              p.angular_velocity[i], model.step};
+      reduce_manifold(candidates, solver_index, int(i), surfaces, motion, tolerance, part);
     }
   });
 }
