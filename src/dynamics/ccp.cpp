@@ -413,15 +413,20 @@ void CcpProblem::to_local(ConstSpan P, Span x) const {
   std::copy(P.begin() + 3 * nc, P.end(), x.begin() + 3 * nc);
 }
 
+// The overlap after the step is -(gap + h (row - b)); it may reach
+// max(tolerance r, -gap), so the row may end as low as -slack.
+double CcpProblem::overlap_slack(std::size_t k, double tolerance) const {
+  const double gap = contacts_->gap[k];
+  return (std::max(tolerance * contacts_->radius[k], -gap) + gap) / step_ - bias_[k];
+}
+
 bool CcpProblem::overlaps_within(ConstSpan g, bool world, double tolerance) const {
   auto excess = [&](std::size_t begin, std::size_t end, Worst& part) {
     for (std::size_t k = begin; k < end; ++k) {
       if (softness_[k] > 0.0) continue;  // a yielding surface's overlap is its give
       const Vec3 gk(g[3 * k], g[3 * k + 1], g[3 * k + 2]);
       const double row = world ? normal(k).dot(gk) : gk[0];
-      const double gap = contacts_->gap[k];
-      const double after = -(gap + step_ * (row - bias_[k]));
-      part.value = std::max(part.value, after - std::max(tolerance * contacts_->radius[k], -gap));
+      part.value = std::max(part.value, -row - overlap_slack(k, tolerance));
     }
   };
   return reduce_chunks<Worst>(a_.size(), excess).value <= 0.0;

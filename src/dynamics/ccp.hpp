@@ -134,6 +134,9 @@ class CcpProblem {
   // -(gap + h v_n). g in world rows (the APGD kernel's) or in the
   // contacts' frames.
   bool overlaps_within(ConstSpan g, bool world, double tolerance) const;
+  // How far below zero contact k's normal row v_n + b may end and still
+  // leave the contact within overlaps_within's `tolerance`.
+  double overlap_slack(std::size_t k, double tolerance) const;
   // Upper bound on the largest eigenvalue of N (Gershgorin-like, cheap).
   double diagonal_max() const { return diag_max_; }
 

@@ -9,11 +9,13 @@
 namespace ces {
 namespace {
 
-// The wall guard acts on rows violated by more than this many solver
+// The guards act on rows violated by more than this many solver
 // tolerances (m/s), but never less than kGuardFloor (below it rounding, not
 // the solve, decides a row's sign: at tolerance 0 the guard's sweeps would
-// chase rounding), in at most this many sweeps (a particle in a corner touches
-// two or three walls); the sliding release on rows lifting by more.
+// chase rounding), nor by less than leaves the contact within the scene's
+// penetration_tolerance (Allowance), in at most this many sweeps (a
+// particle in a corner touches two or three walls); the sliding release on
+// rows lifting by more than the tolerances.
 constexpr double kGuardFactor = 10.0, kGuardFloor = 1e-12;
 constexpr int kGuardSweeps = 4;
 // Then up to this many more over the rows of each body still violated
@@ -42,8 +44,8 @@ double turn_limit(const ParticleShape& s) {
 // can keep a quarter of the impulse that stops it and go through the plate.
 // The guard finishes those rows only, locally: for each contact of a
 // particle with a body of infinite mass (a wall, the drum, a mesh) whose
-// row v_n + b >= 0 the impulses x leave violated by more than `tolerance`
-// (m/s), the normal impulse that makes v_n + b = 0 for the particle alone
+// row v_n + b >= 0 the impulses x leave violated by more than `allowed`
+// allows, the normal impulse that makes v_n + b = 0 for the particle alone
 // (the wall does not move under it), added into x and into the velocities
 // v, w (which must be those of x). It only adds normal impulse, so the
 // impulse stays in its friction cone and what is reported is what was
@@ -63,6 +65,20 @@ double turn_limit(const ParticleShape& s) {
 // opposite (a grain in the nip of two surfaces, a narrow wedge) gains only
 // a fraction sin^2 of the angle between them per sweep, so a few sweeps
 // can leave a grain in the brush nip several radii inside the drum.
+// What a guard lets a row keep of its violation: what the solve's own stop
+// rule allows (CcpProblem::overlaps_within), or the velocity tolerance
+// where that is more. A guard held to less would finish a wall row the
+// solve left within the scene's accuracy, and the push it gives the grain
+// goes into the grains beside it, whose rows the wall guard does not see
+// (a flake on the drum under another).
+struct Allowance {
+  double velocity = 0.0;  // m/s
+  double overlap = 0.0;   // of the smaller radius, as penetration_tolerance
+  double of(const CcpProblem& p, std::size_t k) const {
+    return std::max(velocity, p.overlap_slack(k, overlap));
+  }
+};
+
 struct WallGuard {
   std::size_t corrections = 0;  // rows corrected
   std::size_t bodies = 0;       // bodies still violated after `first_sweeps`
@@ -85,8 +101,8 @@ bool wall_entry(const CcpProblem& p, std::uint32_t e) {
 
 // The wall guard's sweeps over body b's rows with walls; its counts into out.
 void guard_body_walls(const CcpProblem& p, std::size_t b, Span x, std::vector<Vec3>& v,
-                      std::vector<Vec3>& w, double tolerance, int first_sweeps, int max_sweeps,
-                      bool turn, WallGuard& out) {
+                      std::vector<Vec3>& w, const Allowance& allowed, int first_sweeps,
+                      int max_sweeps, bool turn, WallGuard& out) {
   const SolverBodies& B = p.bodies();
   const ContactAdjacency& adj = p.adjacency();
   const std::uint32_t first = adj.offset[b], last = adj.offset[b + 1];
@@ -97,7 +113,7 @@ void guard_body_walls(const CcpProblem& p, std::size_t b, Span x, std::vector<Ve
       if (!wall_entry(p, adj.entry[e])) continue;
       const std::size_t k = adj.entry[e] >> 1;
       const double deficit = -p.row_of(k, v, w);
-      if (!(deficit > tolerance)) continue;  // (also skips a NaN)
+      if (!(deficit > allowed.of(p, k))) continue;  // (also skips a NaN)
       const Vec3 n = p.normal(k), cb = p.lever_b(k).cross(n);
       const double k_eff = B.inv_mass[b] + (turn ? cb.dot(B.inv_inertia[b] * cb) : 0.0);
       if (!(k_eff > 0.0)) continue;
@@ -115,17 +131,19 @@ void guard_body_walls(const CcpProblem& p, std::size_t b, Span x, std::vector<Ve
 }
 
 WallGuard guard_wall_rows(const CcpProblem& p, Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
-                          double tolerance, int first_sweeps, int max_sweeps,
+                          const Allowance& allowed, int first_sweeps, int max_sweeps,
                           const std::vector<std::uint8_t>* locked) {
   const ContactAdjacency& adj = p.adjacency();
   // Bodies are independent here (a wall row moves one body only), so they
   // run in parallel with the same bits for any thread count.
   auto guard = [&](std::size_t b, WallGuard& out) {
     bool violated = false;
-    for (std::uint32_t e = adj.offset[b]; e < adj.offset[b + 1] && !violated; ++e)
-      violated = wall_entry(p, adj.entry[e]) && -p.row_of(adj.entry[e] >> 1, v, w) > tolerance;
+    for (std::uint32_t e = adj.offset[b]; e < adj.offset[b + 1] && !violated; ++e) {
+      const std::size_t k = adj.entry[e] >> 1;
+      violated = wall_entry(p, adj.entry[e]) && -p.row_of(k, v, w) > allowed.of(p, k);
+    }
     if (violated)
-      guard_body_walls(p, b, x, v, w, tolerance, first_sweeps, max_sweeps,
+      guard_body_walls(p, b, x, v, w, allowed, first_sweeps, max_sweeps,
                        locked == nullptr || !(*locked)[b], out);
   };
   return reduce_chunks<WallGuard>(p.bodies().inv_mass.size(),
@@ -141,7 +159,8 @@ WallGuard guard_wall_rows(const CcpProblem& p, Span x, std::vector<Vec3>& v, std
 // only they are swept. v, w need not be those of x. Returns the rows
 // corrected.
 std::size_t guard_body_rows(const CcpProblem& p, Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
-                            const std::vector<std::uint8_t>& flagged, double tolerance, int sweeps,
+                            const std::vector<std::uint8_t>& flagged, const Allowance& allowed,
+                            int sweeps,
                             const std::vector<std::uint8_t>* locked,
                             std::vector<std::uint32_t>& rows) {
   const SolverBodies& B = p.bodies();
@@ -160,7 +179,7 @@ std::size_t guard_body_rows(const CcpProblem& p, Span x, std::vector<Vec3>& v, s
       const auto a = std::size_t(p.body_a(k)), b = std::size_t(p.body_b(k));
       const Vec3 n = p.normal(k), ra = p.lever_a(k), rb = p.lever_b(k);
       const double deficit = -p.bias(k) - n.dot(p.relative_velocity(k, v, w));
-      if (!(deficit > tolerance)) continue;  // (also skips a NaN)
+      if (!(deficit > allowed.of(p, k))) continue;  // (also skips a NaN)
       const Vec3 ca = ra.cross(n), cb = rb.cross(n);
       const bool turn_a = turns(a), turn_b = turns(b);
       const double k_eff = B.inv_mass[a] + (turn_a ? ca.dot(B.inv_inertia[a] * ca) : 0.0) +
@@ -258,7 +277,7 @@ struct Guard {
   SafeguardScratch& scratch;
   Span gamma;
   SolverBodies& bodies;
-  double tolerance;  // m/s: rows violated by less are left alone
+  Allowance allowed;  // rows violated by less are left alone
 };
 
 void guard_walls(Guard& c, StepStats& stats, const std::vector<std::uint8_t>* locked = nullptr);
@@ -346,7 +365,7 @@ void make_safe(Guard& c, StepStats& stats) {
 void release_sliding(Guard& c, StepStats& stats) {
   std::vector<Vec3>& v = c.bodies.v;
   std::vector<Vec3>& w = c.bodies.w;
-  stats.sliding_releases = release_sliding_walls(c.problem, c.gamma, v, w, c.tolerance);
+  stats.sliding_releases = release_sliding_walls(c.problem, c.gamma, v, w, c.allowed.velocity);
   if (stats.sliding_releases > 0) c.problem.velocities(c.gamma, v, w);  // exactly those of x
 }
 
@@ -391,13 +410,13 @@ void limit_spin(Guard& c, StepStats& stats) {
   if (capped == 0) return;
   // Their partners move too: the walls' rows of everyone last.
   stats.wall_corrections += guard_body_rows(c.problem, c.gamma, c.bodies.v, w, s.capped,
-                                            c.tolerance, kGuardSweeps, &s.locked, s.guarded);
+                                            c.allowed, kGuardSweeps, &s.locked, s.guarded);
   guard_walls(c, stats, &s.locked);
 }
 
 // The wall guard (guard_wall_rows), its counts into the stats.
 void guard_walls(Guard& c, StepStats& stats, const std::vector<std::uint8_t>* locked) {
-  const WallGuard f = guard_wall_rows(c.problem, c.gamma, c.bodies.v, c.bodies.w, c.tolerance,
+  const WallGuard f = guard_wall_rows(c.problem, c.gamma, c.bodies.v, c.bodies.w, c.allowed,
                                       kGuardSweeps, kGuardSweeps + kFinishSweeps, locked);
   stats.wall_corrections += f.corrections;
   stats.walls_finished += f.bodies;
@@ -416,8 +435,9 @@ SafeguardScratch::SafeguardScratch(const Model& model) {
 void apply_safeguards(const Model& model, const Particles& particles, const Contacts& contacts,
                       const CcpProblem& problem, SafeguardScratch& scratch, Span gamma,
                       SolverBodies& bodies, StepStats& stats) {
-  const double tolerance = std::max(kGuardFactor * model.solver.tolerance, kGuardFloor);
-  Guard c{model, particles, contacts, problem, scratch, gamma, bodies, tolerance};
+  const Allowance allowed{std::max(kGuardFactor * model.solver.tolerance, kGuardFloor),
+                          model.solver.penetration_tolerance};
+  Guard c{model, particles, contacts, problem, scratch, gamma, bodies, allowed};
   make_safe(c, stats);
   release_sliding(c, stats);
   limit_spin(c, stats);
