@@ -13,6 +13,9 @@
 namespace ces::scene {
 namespace {
 
+// The electrode keys a corona wire's ions read, and nothing else does.
+constexpr const char* kCoronaKeys[] = {"mobility", "air_density"};
+
 std::string format(double x) {
   std::ostringstream s;
   s << x;
@@ -128,7 +131,7 @@ class ElectrostaticsCompiler {
   // most likely forgotten type: corona.
   bool corona_keys_on_corona(const Node& e) {
     if (e.at("type").string() == "corona") return true;
-    for (const char* key : {"mobility", "air_density"}) {
+    for (const char* key : kCoronaKeys) {
       const Node* given = e.find(key);
       if (!given || given->defaulted) continue;
       diags_.error(*given, std::string(key) + " is read for a corona electrode only, expected "
@@ -392,6 +395,21 @@ class ElectrostaticsCompiler {
 };
 
 }  // namespace
+
+void drop_corona_defaults(Node& root) {
+  Node* section = root.find("electrostatics");
+  Node* list = section ? section->find("electrodes") : nullptr;
+  if (!list || !list->is_sequence()) return;
+  for (Node& e : list->items) {
+    const Node* type = e.is_map() ? e.find("type") : nullptr;
+    if (!type || (type->is_string() && type->string() == "corona")) continue;
+    std::erase_if(e.entries, [](const Entry& entry) {
+      return entry.value.defaulted &&
+             std::find(std::begin(kCoronaKeys), std::end(kCoronaKeys), entry.key) !=
+                 std::end(kCoronaKeys);
+    });
+  }
+}
 
 void compile_electrostatics(const ElectrostaticsInput& in, Simulation& sim, Diagnostics& diags) {
   ElectrostaticsCompiler(in, diags).compile(sim);

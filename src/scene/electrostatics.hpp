@@ -35,6 +35,13 @@ struct ElectrostaticsInput {
   std::function<std::optional<int>(const Node& ref)> body;
 };
 
+// Takes the corona wire's keys (mobility, air_density) off every electrode
+// that is not a corona wire where they are the schema's defaults, after the
+// defaults are filled: nothing reads them there, and the resolved scene
+// that gives them would be refused on loading again (ces-sim resume) as a
+// static electrode with a corona's keys.
+void drop_corona_defaults(Node& root);
+
 // Sets sim.electrostatics and sim.electrodes, or reports every problem.
 void compile_electrostatics(const ElectrostaticsInput& in, Simulation& sim, Diagnostics& diags);
 

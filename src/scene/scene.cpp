@@ -6,6 +6,7 @@
 #include "common/hash.hpp"
 #include "scene/compile.hpp"
 #include "scene/diagnostics.hpp"
+#include "scene/electrostatics.hpp"
 #include "scene/resolve.hpp"
 #include "scene/schema.hpp"
 
@@ -40,6 +41,7 @@ Simulation finish(std::optional<Node> tree, const std::string& path, const LoadO
   if (!root.find("name"))
     set_key(root, "name", std::filesystem::path(path).stem().string(), root.mark);
   apply_defaults(root);
+  drop_corona_defaults(root);
   rebase_paths(root, path);
   assign_paths(root);
   const std::string resolved = to_yaml(root);  // before units: the user's own words
