@@ -1,7 +1,6 @@
 #include "collision/collide.hpp"
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -51,6 +50,14 @@ void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double 
 // across the face, so rows that hold at the hull's corners hold at every
 // member inside it: a tumbling flake cannot swing an edge sphere into the
 // drum unseen, as it can past a few points that span the face only.
+// A member's place in the plane across its group's normal; by position,
+// ties by contact order.
+struct Planar {
+  double x, y;
+  std::size_t k;  // the candidate
+  bool operator<(const Planar& o) const { return std::tie(x, y, k) < std::tie(o.x, o.y, o.k); }
+};
+
 void hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> members,
                  std::vector<std::uint8_t>& keep) {
   std::size_t deepest = members[0];
@@ -59,29 +66,26 @@ void hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> m
   keep[deepest] = 1;
   const Vec3& n = c[members[0]].normal;
   const Vec3 u = n.unitOrthogonal(), v = n.cross(u);
-  static thread_local std::vector<std::array<double, 2>> at;
-  static thread_local std::vector<std::size_t> order, chain;
-  at.resize(c.size());
-  for (std::size_t k : members) at[k] = {c[k].point.dot(u), c[k].point.dot(v)};
-  order.assign(members.begin(), members.end());
-  std::sort(order.begin(), order.end(),
-            [&](std::size_t a, std::size_t b) { return std::tie(at[a], a) < std::tie(at[b], b); });
-  auto turns_left = [&](std::size_t o, std::size_t a, std::size_t b) {
-    return (at[a][0] - at[o][0]) * (at[b][1] - at[o][1]) -
-               (at[a][1] - at[o][1]) * (at[b][0] - at[o][0]) > 0.0;
+  // Per thread, kept across pairs: no allocation per group.
+  static thread_local std::vector<Planar> order, chain;
+  order.clear();
+  for (std::size_t k : members) order.push_back({c[k].point.dot(u), c[k].point.dot(v), k});
+  std::sort(order.begin(), order.end());
+  auto turns_left = [](const Planar& o, const Planar& a, const Planar& b) {
+    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x) > 0.0;
   };
   // Lower hull left to right, then upper hull right to left.
   chain.clear();
   for (int pass = 0; pass < 2; ++pass) {
     const std::size_t floor = chain.size();
-    for (std::size_t k : order) {
-      while (chain.size() >= floor + 2 && !turns_left(chain[chain.size() - 2], chain.back(), k))
+    for (const Planar& p : order) {
+      while (chain.size() >= floor + 2 && !turns_left(chain[chain.size() - 2], chain.back(), p))
         chain.pop_back();
-      chain.push_back(k);
+      chain.push_back(p);
     }
     std::reverse(order.begin(), order.end());
   }
-  for (std::size_t k : chain) keep[k] = 1;
+  for (const Planar& p : chain) keep[p.k] = 1;
 }
 
 // A flat face resting on another touches it with many of its spheres at
