@@ -43,13 +43,6 @@ void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double 
   out.push_back({n, ca + n * (ra + 0.5 * gap), gap, std::min(ra, rb), key});
 }
 
-// A group's kept: the deepest and the corners of the members' convex hull
-// in the plane across the group's normal (Andrew's monotone chain, members
-// ordered by position, ties by contact order, so the choice is the same
-// whatever the gaps). A rigid face's velocity along the normal is affine
-// across the face, so rows that hold at the hull's corners hold at every
-// member inside it: a tumbling flake cannot swing an edge sphere into the
-// drum unseen, as it can past a few points that span the face only.
 // A member's place in the plane across its group's normal; by position,
 // ties by contact order.
 struct Planar {
@@ -58,6 +51,13 @@ struct Planar {
   bool operator<(const Planar& o) const { return std::tie(x, y, k) < std::tie(o.x, o.y, o.k); }
 };
 
+// A group's kept: the deepest and the corners of the members' convex hull
+// in the plane across the group's normal (Andrew's monotone chain, members
+// ordered by position, ties by contact order, so the choice is the same
+// whatever the gaps). A rigid face's velocity along the normal is affine
+// across the face, so rows that hold at the hull's corners hold at every
+// member inside it: a tumbling flake cannot swing an edge sphere into the
+// drum unseen, as it can past a few points that span the face only.
 void hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> members,
                  std::vector<std::uint8_t>& keep) {
   std::size_t deepest = members[0];
@@ -66,26 +66,34 @@ void hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> m
   keep[deepest] = 1;
   const Vec3& n = c[members[0]].normal;
   const Vec3 u = n.unitOrthogonal(), v = n.cross(u);
-  // Per thread, kept across pairs: no allocation per group.
-  static thread_local std::vector<Planar> order, chain;
-  order.clear();
-  for (std::size_t k : members) order.push_back({c[k].point.dot(u), c[k].point.dot(v), k});
-  std::sort(order.begin(), order.end());
+  // The members, then the chain (at most two entries a member: the lower
+  // hull and the upper), in one buffer per thread, kept across pairs. Used
+  // through plain pointers: the compiler then keeps the chain's top in a
+  // register, not in the thread's storage at every push and pop.
+  static thread_local std::vector<Planar> buffer;
+  const std::size_t m = members.size();
+  buffer.resize(3 * m);
+  Planar* const order = buffer.data();
+  Planar* const chain = order + m;
+  for (std::size_t i = 0; i < m; ++i) {
+    const Vec3& x = c[members[i]].point;
+    order[i] = {x.dot(u), x.dot(v), members[i]};
+  }
+  std::sort(order, order + m);
   auto turns_left = [](const Planar& o, const Planar& a, const Planar& b) {
     return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x) > 0.0;
   };
   // Lower hull left to right, then upper hull right to left.
-  chain.clear();
+  std::size_t top = 0;
   for (int pass = 0; pass < 2; ++pass) {
-    const std::size_t floor = chain.size();
-    for (const Planar& p : order) {
-      while (chain.size() >= floor + 2 && !turns_left(chain[chain.size() - 2], chain.back(), p))
-        chain.pop_back();
-      chain.push_back(p);
+    const std::size_t floor = top;
+    for (std::size_t i = 0; i < m; ++i) {
+      const Planar& p = order[pass == 0 ? i : m - 1 - i];
+      while (top >= floor + 2 && !turns_left(chain[top - 2], chain[top - 1], p)) --top;
+      chain[top++] = p;
     }
-    std::reverse(order.begin(), order.end());
   }
-  for (const Planar& p : chain) keep[p.k] = 1;
+  for (std::size_t i = 0; i < top; ++i) keep[chain[i].k] = 1;
 }
 
 // A flat face resting on another touches it with many of its spheres at
