@@ -282,13 +282,16 @@ void CcpProblem::gradient(ConstSpan x, Span g) const {
 }
 
 void CcpProblem::mark_soft_blocks() {
-  soft_block_.assign((a_.size() + kLanes - 1) / kLanes, 0);
-  soft_.clear();
-  for (std::size_t k = 0; k < a_.size(); ++k)
-    if (softness_[k] > 0.0) {
-      soft_block_[k / kLanes] = 1;
-      soft_.push_back(std::uint32_t(k));
-    }
+  const std::size_t nc = a_.size(), blocks = (nc + kLanes - 1) / kLanes;
+  auto soft = [&](std::size_t k) { return softness_[k] > 0.0; };
+  soft_block_.resize(blocks);
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(nc) > kParallelMin)
+  for (std::size_t b = 0; b < blocks; ++b) {
+    bool any = false;
+    for (std::size_t k = b * kLanes; k < std::min(nc, (b + 1) * kLanes); ++k) any = any || soft(k);
+    soft_block_[b] = any;
+  }
+  select_in_order(nc, soft, soft_);
 }
 
 void CcpProblem::add_softness(ConstSpan x, Span g) const {
