@@ -51,6 +51,39 @@ struct Planar {
   bool operator<(const Planar& o) const { return std::tie(x, y, k) < std::tie(o.x, o.y, o.k); }
 };
 
+// a[0, m) in order, by way of spare[0, m). A comparison sort of a flake
+// pair's hundred members mispredicts about every other comparison, so
+// they are first dealt into m buckets by x: a bucket's index never falls
+// as x rises (rounding is monotonic), so the buckets are in order and an
+// insertion sort then only moves members within their bucket. The same
+// order as std::sort; a NaN, which has no place in it, leaves the sort
+// to std::sort.
+void sort_planar(Planar* a, Planar* spare, std::size_t m, std::vector<std::uint32_t>& counts) {
+  double lo = a[0].x, hi = a[0].x;
+  bool finite = true;
+  for (std::size_t i = 0; i < m; ++i) {
+    lo = std::min(lo, a[i].x);
+    hi = std::max(hi, a[i].x);
+    finite = finite && std::isfinite(a[i].x) && std::isfinite(a[i].y);
+  }
+  if (!finite || !(hi > lo)) {
+    std::sort(a, a + m);
+    return;
+  }
+  const double scale = double(m) / (hi - lo);
+  auto bucket = [&](double x) { return std::min(m - 1, std::size_t((x - lo) * scale)); };
+  counts.assign(m + 1, 0);
+  for (std::size_t i = 0; i < m; ++i) ++counts[bucket(a[i].x) + 1];
+  for (std::size_t b = 0; b < m; ++b) counts[b + 1] += counts[b];
+  for (std::size_t i = 0; i < m; ++i) spare[counts[bucket(a[i].x)]++] = a[i];
+  for (std::size_t i = 0; i < m; ++i) {
+    const Planar p = spare[i];
+    std::size_t j = i;
+    for (; j > 0 && p < a[j - 1]; --j) a[j] = a[j - 1];
+    a[j] = p;
+  }
+}
+
 // A group's kept: the deepest and the corners of the members' convex hull
 // in the plane across the group's normal (Andrew's monotone chain, members
 // ordered by position, ties by contact order, so the choice is the same
@@ -66,20 +99,22 @@ void hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> m
   keep[deepest] = 1;
   const Vec3& n = c[members[0]].normal;
   const Vec3 u = n.unitOrthogonal(), v = n.cross(u);
-  // The members, then the chain (at most two entries a member: the lower
-  // hull and the upper), in one buffer per thread, kept across pairs. Used
-  // through plain pointers: the compiler then keeps the chain's top in a
-  // register, not in the thread's storage at every push and pop.
+  // The members, a spare for sorting them, then the chain (at most two
+  // entries a member: the lower hull and the upper), in one buffer per
+  // thread, kept across pairs. Used through plain pointers: the compiler
+  // then keeps the chain's top in a register, not in the thread's storage
+  // at every push and pop.
   static thread_local std::vector<Planar> buffer;
+  static thread_local std::vector<std::uint32_t> counts;
   const std::size_t m = members.size();
-  buffer.resize(3 * m);
+  buffer.resize(4 * m);
   Planar* const order = buffer.data();
-  Planar* const chain = order + m;
+  Planar* const chain = order + 2 * m;
   for (std::size_t i = 0; i < m; ++i) {
     const Vec3& x = c[members[i]].point;
     order[i] = {x.dot(u), x.dot(v), members[i]};
   }
-  std::sort(order, order + m);
+  sort_planar(order, order + m, m, counts);
   auto turns_left = [](const Planar& o, const Planar& a, const Planar& b) {
     return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x) > 0.0;
   };
