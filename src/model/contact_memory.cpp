@@ -92,7 +92,14 @@ const Vec3* ContactMemory::find_at(const ContactKey& key, std::size_t& cursor) c
 }
 
 const Vec3* ContactMemory::find(const ContactKey& key, std::size_t& cursor) const {
-  if (const Vec3* at = find_at(key, cursor)) return at;
+  // At the cursor or a few keys past it: the contacts the last step had
+  // and this one lost are passed over without a lookup in the table.
+  const std::size_t near = std::min(keys_.size(), cursor + kLookAhead);
+  for (std::size_t k = cursor; k < near; ++k)
+    if (keys_[k] == key) {
+      cursor = k + 1;
+      return &values_[k];
+    }
   if (keys_.empty()) return nullptr;
   index();
   const std::uint64_t h = hash(key);

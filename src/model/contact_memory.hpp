@@ -40,10 +40,10 @@ class ContactMemory {
   // fill next step without allocating.
   void assign(const std::vector<ContactKey>& keys, std::vector<Vec3>& values);
   const Vec3* find(const ContactKey& key) const;  // nullptr: not stored
-  // The same, trying first the key stored at `cursor` and moving it past
-  // the key found: a scan in the order the keys were stored reads them in
-  // sequence and never builds the table (a bed at rest), where hashed
-  // lookups cost a cache miss each. Safe to call
+  // The same, trying first the keys stored at `cursor` and the few after
+  // it, and moving it past the key found: a scan in the order the keys
+  // were stored reads them in sequence and never builds the table (a bed
+  // at rest), where hashed lookups cost a cache miss each. Safe to call
   // from several threads at once.
   const Vec3* find(const ContactKey& key, std::size_t& cursor) const;
   // The key stored at `cursor`'s value (and the cursor past it), or
@@ -65,6 +65,7 @@ class ContactMemory {
   // of another key on the hashes alone, without reading keys_ (a cache
   // miss each).
   static constexpr std::uint64_t kEmpty = ~std::uint64_t{0};
+  static constexpr std::size_t kLookAhead = 8;  // keys find(key, cursor) tries in order
   static std::uint64_t hash(const ContactKey& key);
   static std::uint64_t slot_value(std::uint64_t hash, std::uint32_t k) {
     return (hash & ~std::uint64_t{0xffffffff}) | k;
