@@ -56,8 +56,8 @@ struct Planar {
 // they are first dealt into m buckets by x: a bucket's index never falls
 // as x rises (rounding is monotonic), so the buckets are in order and an
 // insertion sort then only moves members within their bucket. The same
-// order as std::sort; a NaN, which has no place in it, leaves the sort
-// to std::sort.
+// order as std::sort; a NaN, which has no place in it, or a span of x too
+// small to divide, leaves the sort to std::sort.
 void sort_planar(Planar* a, Planar* spare, std::size_t m, std::vector<std::uint32_t>& counts) {
   double lo = a[0].x, hi = a[0].x;
   bool finite = true;
@@ -66,11 +66,11 @@ void sort_planar(Planar* a, Planar* spare, std::size_t m, std::vector<std::uint3
     hi = std::max(hi, a[i].x);
     finite = finite && std::isfinite(a[i].x) && std::isfinite(a[i].y);
   }
-  if (!finite || !(hi > lo)) {
+  const double scale = double(m) / (hi - lo);  // inf or NaN where hi - lo is 0 or subnormal
+  if (!finite || !std::isfinite(scale)) {
     std::sort(a, a + m);
     return;
   }
-  const double scale = double(m) / (hi - lo);
   auto bucket = [&](double x) { return std::min(m - 1, std::size_t((x - lo) * scale)); };
   counts.assign(m + 1, 0);
   for (std::size_t i = 0; i < m; ++i) ++counts[bucket(a[i].x) + 1];
