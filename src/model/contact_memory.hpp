@@ -70,7 +70,8 @@ class ContactMemory {
   static std::uint64_t slot_value(std::uint64_t hash, std::uint32_t k) {
     return (hash & ~std::uint64_t{0xffffffff}) | k;
   }
-  // Whether a slot's value may be key k's, whose hash is `hash`.
+  // Whether a slot holds `key`, whose hash is `hash`: keys_ is read only
+  // where the hashes' high halves agree.
   bool holds(std::uint64_t value, std::uint64_t hash, const ContactKey& key) const {
     return (value ^ hash) >> 32 == 0 && keys_[std::uint32_t(value)] == key;
   }
