@@ -1,7 +1,6 @@
 #include "collision/collide.hpp"
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -45,32 +44,76 @@ void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double 
   out.push_back({n, ca + n * (ra + 0.5 * gap), gap, std::min(ra, rb), key});
 }
 
-// The hull of a group's members across its normal: their points in the
-// plane (`at`, by candidate) and its corners in order, counter-clockwise
-// (the first and the last corner of each chain appear twice).
-struct Hull {
-  std::vector<std::array<double, 2>> at;
-  std::vector<std::size_t> corners;
-
-  // Twice the signed area of the triangle (o, a, b) of candidates.
-  double cross(std::size_t o, std::size_t a, std::size_t b) const {
-    return (at[a][0] - at[o][0]) * (at[b][1] - at[o][1]) -
-           (at[a][1] - at[o][1]) * (at[b][0] - at[o][0]);
-  }
-  // `value` (one per corner) interpolated linearly at candidate k, on the
-  // fan of triangles from the first corner; `outside` if no triangle holds
-  // k (a hull with no area: members in a line).
-  double interpolate(std::size_t k, const std::vector<double>& value, double outside) const;
+// A member's place in the plane across its group's normal; by position,
+// ties by contact order.
+struct Planar {
+  double x, y;
+  std::size_t k;  // the candidate
+  bool operator<(const Planar& o) const { return std::tie(x, y, k) < std::tie(o.x, o.y, o.k); }
 };
 
-double Hull::interpolate(std::size_t k, const std::vector<double>& value, double outside) const {
+// a[0, m) in order, by way of spare[0, m). A comparison sort of a flake
+// pair's hundred members mispredicts about every other comparison, so
+// they are first dealt into m buckets by x: a bucket's index never falls
+// as x rises (rounding is monotonic), so the buckets are in order and an
+// insertion sort then only moves members within their bucket. The same
+// order as std::sort; a NaN, which has no place in it, or a span of x too
+// small to divide, leaves the sort to std::sort.
+void sort_planar(Planar* a, Planar* spare, std::size_t m, std::vector<std::uint32_t>& counts) {
+  double lo = a[0].x, hi = a[0].x;
+  bool finite = true;
+  for (std::size_t i = 0; i < m; ++i) {
+    lo = std::min(lo, a[i].x);
+    hi = std::max(hi, a[i].x);
+    finite = finite && std::isfinite(a[i].x) && std::isfinite(a[i].y);
+  }
+  const double scale = double(m) / (hi - lo);  // inf or NaN where hi - lo is 0 or subnormal
+  if (!finite || !std::isfinite(scale)) {
+    std::sort(a, a + m);
+    return;
+  }
+  auto bucket = [&](double x) { return std::min(m - 1, std::size_t((x - lo) * scale)); };
+  counts.assign(m + 1, 0);
+  for (std::size_t i = 0; i < m; ++i) ++counts[bucket(a[i].x) + 1];
+  for (std::size_t b = 0; b < m; ++b) counts[b + 1] += counts[b];
+  for (std::size_t i = 0; i < m; ++i) spare[counts[bucket(a[i].x)]++] = a[i];
+  for (std::size_t i = 0; i < m; ++i) {
+    const Planar p = spare[i];
+    std::size_t j = i;
+    for (; j > 0 && p < a[j - 1]; --j) a[j] = a[j - 1];
+    a[j] = p;
+  }
+}
+
+// Twice the signed area of the triangle (o, a, b): positive where a to b
+// turns left about o.
+double cross(const Planar& o, const Planar& a, const Planar& b) {
+  return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+}
+
+// The hull of a group's members across its normal, as hull_points leaves
+// it in its thread's buffer until its next call: the members in the plane,
+// and the hull's corners in order, counter-clockwise (the first and the
+// last corner of each chain appear twice).
+struct Hull {
+  const Planar* members = nullptr;
+  std::size_t count = 0;
+  const Planar* corners = nullptr;
+  std::size_t corner_count = 0;
+  // `value` (one per corner) interpolated linearly at p, on the fan of
+  // triangles from the first corner; `outside` if no triangle holds p (a
+  // hull with no area: members in a line).
+  double interpolate(const Planar& p, const std::vector<double>& value, double outside) const;
+};
+
+double Hull::interpolate(const Planar& p, const std::vector<double>& value, double outside) const {
   constexpr double kEdge = 1e-9;  // of the triangle's area: a point on an edge is in it
-  const std::size_t o = corners[0];
-  for (std::size_t i = 1; i + 1 < corners.size(); ++i) {
-    const std::size_t a = corners[i], b = corners[i + 1];
+  const Planar& o = corners[0];
+  for (std::size_t i = 1; i + 1 < corner_count; ++i) {
+    const Planar &a = corners[i], &b = corners[i + 1];
     const double area = cross(o, a, b);
     if (!(area > 0.0)) continue;
-    const double s = cross(o, k, b) / area, t = cross(o, a, k) / area;
+    const double s = cross(o, p, b) / area, t = cross(o, a, p) / area;
     if (s < -kEdge || t < -kEdge || s + t > 1.0 + kEdge) continue;
     return (1.0 - s - t) * value[0] + s * value[i] + t * value[i + 1];
   }
@@ -80,36 +123,43 @@ double Hull::interpolate(std::size_t k, const std::vector<double>& value, double
 // A group's kept: the deepest and the corners of the members' convex hull
 // in the plane across the group's normal (Andrew's monotone chain, members
 // ordered by position, ties by contact order, so the choice is the same
-// whatever the gaps). Fills `hull` for keep_unheld.
-void hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> members,
-                 Hull& hull, std::vector<std::uint8_t>& keep) {
+// whatever the gaps). Returns the hull, for keep_unheld.
+Hull hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> members,
+                 std::vector<std::uint8_t>& keep) {
   std::size_t deepest = members[0];
   for (std::size_t k : members)
     if (c[k].gap < c[deepest].gap) deepest = k;
   keep[deepest] = 1;
   const Vec3& n = c[members[0]].normal;
   const Vec3 u = n.unitOrthogonal(), v = n.cross(u);
-  std::vector<std::array<double, 2>>& at = hull.at;
-  std::vector<std::size_t>& chain = hull.corners;
-  static thread_local std::vector<std::size_t> order;
-  at.resize(c.size());
-  for (std::size_t k : members) at[k] = {c[k].point.dot(u), c[k].point.dot(v)};
-  order.assign(members.begin(), members.end());
-  std::sort(order.begin(), order.end(),
-            [&](std::size_t a, std::size_t b) { return std::tie(at[a], a) < std::tie(at[b], b); });
-  // Lower hull left to right, then upper hull right to left.
-  chain.clear();
-  for (int pass = 0; pass < 2; ++pass) {
-    const std::size_t floor = chain.size();
-    for (std::size_t k : order) {
-      while (chain.size() >= floor + 2 &&
-             !(hull.cross(chain[chain.size() - 2], chain.back(), k) > 0.0))
-        chain.pop_back();
-      chain.push_back(k);
-    }
-    std::reverse(order.begin(), order.end());
+  // The members, a spare for sorting them, then the chain (at most two
+  // entries a member: the lower hull and the upper), in one buffer per
+  // thread, kept across pairs. Used through plain pointers: the compiler
+  // then keeps the chain's top in a register, not in the thread's storage
+  // at every push and pop.
+  static thread_local std::vector<Planar> buffer;
+  static thread_local std::vector<std::uint32_t> counts;
+  const std::size_t m = members.size();
+  buffer.resize(4 * m);
+  Planar* const order = buffer.data();
+  Planar* const chain = order + 2 * m;
+  for (std::size_t i = 0; i < m; ++i) {
+    const Vec3& x = c[members[i]].point;
+    order[i] = {x.dot(u), x.dot(v), members[i]};
   }
-  for (std::size_t k : chain) keep[k] = 1;
+  sort_planar(order, order + m, m, counts);
+  // Lower hull left to right, then upper hull right to left.
+  std::size_t top = 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    const std::size_t floor = top;
+    for (std::size_t i = 0; i < m; ++i) {
+      const Planar& p = order[pass == 0 ? i : m - 1 - i];
+      while (top >= floor + 2 && !(cross(chain[top - 2], chain[top - 1], p) > 0.0)) --top;
+      chain[top++] = p;
+    }
+  }
+  for (std::size_t i = 0; i < top; ++i) keep[chain[i].k] = 1;
+  return {order, m, chain, top};
 }
 
 // The motion of a pair's B side relative to its A side at the step's
@@ -134,24 +184,24 @@ struct PairMotion {
 // penetration_tolerance with every kept row met (two flakes spinning
 // against each other in the brush nip) is kept too; a flat face on a wall
 // keeps its corners alone.
-void keep_unheld(const std::vector<Candidate>& c, std::span<const std::size_t> members,
-                 const Hull& hull, const PairMotion& motion, double tolerance,
-                 std::vector<std::uint8_t>& keep) {
-  const Vec3& n_g = c[members[0]].normal;
+void keep_unheld(const std::vector<Candidate>& c, const Vec3& n_g, const Hull& hull,
+                 const PairMotion& motion, double tolerance, std::vector<std::uint8_t>& keep) {
   auto slack = [&](std::size_t k) {
     return (c[k].normal - n_g).norm() * motion.travel(c[k].point);
   };
   static thread_local std::vector<double> closing;  // per corner: gap + slack
-  closing.resize(hull.corners.size());
+  closing.resize(hull.corner_count);
   double most = -std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < hull.corners.size(); ++i) {
-    closing[i] = c[hull.corners[i]].gap + slack(hull.corners[i]);
+  for (std::size_t i = 0; i < hull.corner_count; ++i) {
+    const std::size_t k = hull.corners[i].k;
+    closing[i] = c[k].gap + slack(k);
     most = std::max(most, closing[i]);
   }
-  for (std::size_t k : members) {
-    if (keep[k]) continue;
-    const double allowed = c[k].gap - slack(k) + tolerance * c[k].radius;
-    if (allowed < most && allowed < hull.interpolate(k, closing, most)) keep[k] = 1;
+  for (std::size_t i = 0; i < hull.count; ++i) {
+    const Planar& p = hull.members[i];
+    if (keep[p.k]) continue;
+    const double allowed = c[p.k].gap - slack(p.k) + tolerance * c[p.k].radius;
+    if (allowed < most && allowed < hull.interpolate(p, closing, most)) keep[p.k] = 1;
   }
 }
 
@@ -175,7 +225,6 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
     for (const Candidate& k : c) push(k);
     return;
   }
-  static thread_local Hull hull;
   static thread_local std::vector<int> group;
   static thread_local std::vector<std::uint8_t> keep;
   static thread_local std::vector<std::size_t> by_group, start, fill, leader;
@@ -213,8 +262,8 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
       for (std::size_t k : members) keep[k] = 1;
       continue;
     }
-    hull_points(c, members, hull, keep);
-    keep_unheld(c, members, hull, motion, tolerance, keep);
+    const Hull hull = hull_points(c, members, keep);
+    keep_unheld(c, c[members[0]].normal, hull, motion, tolerance, keep);
   }
   for (std::size_t k = 0; k < n; ++k)
     if (keep[k]) push(c[k]);

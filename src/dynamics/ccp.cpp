@@ -231,19 +231,53 @@ void CcpProblem::scatter(ConstSpan x, bool add_free, std::vector<Vec3>& dv,
   scatter_bodies(impulse_.data(), x, add_free, dv, dw);
 }
 
+std::array<double, 3> CcpProblem::gather_contact(std::size_t k, const std::vector<Vec3>& v,
+                                                 const std::vector<Vec3>& w, bool add_bias) const {
+  const Vec3 rel = relative_velocity(k, v, w);
+  const Frame F = frame(k);
+  return {F.n.dot(rel) + (add_bias ? bias_[k] : 0.0), F.t1.dot(rel), F.t2.dot(rel)};
+}
+
+std::array<double, 3> CcpProblem::gradient_rows(std::size_t k, const std::vector<Vec3>& v,
+                                                const std::vector<Vec3>& w, ConstSpan x) const {
+  std::array<double, 3> g = gather_contact(k, v, w, true);
+  if (softness_[k] > 0.0) g[0] += softness_[k] * x[3 * k];  // add_softness's term
+  return g;
+}
+
 void CcpProblem::gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias,
                         Span y) const {
   const auto nc = std::ptrdiff_t(a_.size());
 #pragma omp parallel for schedule(static) if (nc > kParallelMin)
   for (std::ptrdiff_t s = 0; s < nc; ++s) {
     const auto k = std::size_t(s);
-    const Vec3 rel = relative_velocity(k, v, w);
-    const Frame F = frame(k);
-    y[3 * k] = F.n.dot(rel) + (add_bias ? bias_[k] : 0.0);
-    y[3 * k + 1] = F.t1.dot(rel);
-    y[3 * k + 2] = F.t2.dot(rel);
+    const std::array<double, 3> rows = gather_contact(k, v, w, add_bias);
+    std::copy(rows.begin(), rows.end(), &y[3 * k]);
   }
   gather_rows(v, w, add_bias, y);
+}
+
+CcpProblem::EnergySums& CcpProblem::EnergySums::operator+=(const EnergySums& o) {
+  rx += o.rx;
+  xnx += o.xnx;
+  return *this;
+}
+
+CcpProblem::EnergySums CcpProblem::energy_sums(const std::vector<Vec3>& v_base,
+                                               const std::vector<Vec3>& w_base,
+                                               const std::vector<Vec3>& v,
+                                               const std::vector<Vec3>& w, ConstSpan x) const {
+  return reduce_chunks<EnergySums>(a_.size(), [&](std::size_t begin, std::size_t end,
+                                                  EnergySums& part) {
+    for (std::size_t k = begin; k < end; ++k) {
+      const std::array<double, 3> r = gather_contact(k, v_base, w_base, true);
+      const std::array<double, 3> g = gradient_rows(k, v, w, x);
+      for (std::size_t c = 0; c < 3; ++c) {
+        part.rx += r[c] * x[3 * k + c];
+        part.xnx += x[3 * k + c] * (g[c] - r[c]);
+      }
+    }
+  });
 }
 
 void CcpProblem::gather_rows(const std::vector<Vec3>& v, const std::vector<Vec3>& w,
@@ -282,13 +316,16 @@ void CcpProblem::gradient(ConstSpan x, Span g) const {
 }
 
 void CcpProblem::mark_soft_blocks() {
-  soft_block_.assign((a_.size() + kLanes - 1) / kLanes, 0);
-  soft_.clear();
-  for (std::size_t k = 0; k < a_.size(); ++k)
-    if (softness_[k] > 0.0) {
-      soft_block_[k / kLanes] = 1;
-      soft_.push_back(std::uint32_t(k));
-    }
+  const std::size_t nc = a_.size(), blocks = (nc + kLanes - 1) / kLanes;
+  auto soft = [&](std::size_t k) { return softness_[k] > 0.0; };
+  soft_block_.resize(blocks);
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(nc) > kParallelMin)
+  for (std::size_t b = 0; b < blocks; ++b) {
+    bool any = false;
+    for (std::size_t k = b * kLanes; k < std::min(nc, (b + 1) * kLanes); ++k) any = any || soft(k);
+    soft_block_[b] = any;
+  }
+  select_in_order(nc, soft, soft_);
 }
 
 void CcpProblem::add_softness(ConstSpan x, Span g) const {
@@ -338,12 +375,14 @@ struct ResidualPart {
 };
 }  // namespace
 
-double CcpProblem::residual(ConstSpan x, ConstSpan g) const {
+template <class ContactG, class RowG>
+double CcpProblem::residual_of(ConstSpan x, ContactG contact_g, RowG row_g) const {
   const double s = 1.0 / diag_max_;
   const ResidualPart total = reduce<ResidualPart>(
       [&](std::ptrdiff_t k, double mu, ResidualPart& part) {
         const auto i = 3 * std::size_t(k);
-        double pn = x[i] - s * g[i], p1 = x[i + 1] - s * g[i + 1], p2 = x[i + 2] - s * g[i + 2];
+        const std::array<double, 3> g = contact_g(std::size_t(k));
+        double pn = x[i] - s * g[0], p1 = x[i + 1] - s * g[1], p2 = x[i + 2] - s * g[2];
         project_cone(mu, pn, p1, p2);
         part.add(x[i], pn, diag_max_);
         part.add(x[i + 1], p1, diag_max_);
@@ -351,9 +390,23 @@ double CcpProblem::residual(ConstSpan x, ConstSpan g) const {
       },
       [&](std::ptrdiff_t i, double lo, double hi, ResidualPart& part) {
         const auto u = std::size_t(i);
-        part.add(x[u], std::clamp(x[u] - s * g[u], lo, hi), diag_max_);
+        part.add(x[u], std::clamp(x[u] - s * row_g(u), lo, hi), diag_max_);
       });
   return x.empty() ? 0.0 : std::sqrt(total.sum / double(x.size()));
+}
+
+double CcpProblem::residual(ConstSpan x, ConstSpan g) const {
+  return residual_of(
+      x, [&](std::size_t k) { return std::array<double, 3>{g[3 * k], g[3 * k + 1], g[3 * k + 2]}; },
+      [&](std::size_t i) { return g[i]; });
+}
+
+double CcpProblem::residual_at(const std::vector<Vec3>& v, const std::vector<Vec3>& w,
+                               ConstSpan x) const {
+  const std::size_t base = 3 * a_.size();
+  return residual_of(
+      x, [&](std::size_t k) { return gradient_rows(k, v, w, x); },
+      [&](std::size_t i) { return row_velocity(v, w, rows_[i - base]) + rows_[i - base].bias; });
 }
 
 double CcpProblem::block_scale(int body, const Vec3& r) const {

@@ -140,18 +140,21 @@ class CcpProblem {
   // Upper bound on the largest eigenvalue of N (Gershgorin-like, cheap).
   double diagonal_max() const { return diag_max_; }
 
-  // The gradient (N + E) x + r when v, w are velocities(x), without the
-  // scatter again: J v + b, and the yielding contacts' E x.
-  void gradient_at(const std::vector<Vec3>& v, const std::vector<Vec3>& w, ConstSpan x,
-                   Span g) const {
-    gather(v, w, true, g);
-    add_softness(x, g);
-  }
-  // J v + b alone: r where v, w are the velocities of impulses with no
-  // contact part (the joints' alone).
-  void rows_at(const std::vector<Vec3>& v, const std::vector<Vec3>& w, Span g) const {
-    gather(v, w, true, g);
-  }
+  // The energy check's sums over the contacts' rows: r.x and x.(N + E)x,
+  // where r = J v_base + b (v_base, w_base: the velocities of impulses
+  // with no contact part, the joints' alone) and (N + E) x + r the
+  // gradient at x (v, w: velocities(x)). One pass that stores neither
+  // vector, in fixed chunks: the same bits for any thread count.
+  struct EnergySums {
+    double rx = 0.0, xnx = 0.0;
+    EnergySums& operator+=(const EnergySums& o);
+  };
+  EnergySums energy_sums(const std::vector<Vec3>& v_base, const std::vector<Vec3>& w_base,
+                         const std::vector<Vec3>& v, const std::vector<Vec3>& w,
+                         ConstSpan x) const;
+  // residual(x, g) for g the gradient at x, where v, w are velocities(x),
+  // without the scatter again and with no gradient stored.
+  double residual_at(const std::vector<Vec3>& v, const std::vector<Vec3>& w, ConstSpan x) const;
   // Final velocities v_free + M^-1 J^T x.
   void velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>& w) const;
   // The same for x's bilateral rows alone (its contact rows taken as 0),
@@ -303,6 +306,17 @@ class CcpProblem {
   // dv, dw += M^-1 J^T x over x's bilateral rows.
   void add_row_impulses(ConstSpan x, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
   void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, Span y) const;
+  // Contact k's rows of J v (+ b with add_bias), as gather writes them.
+  std::array<double, 3> gather_contact(std::size_t k, const std::vector<Vec3>& v,
+                                       const std::vector<Vec3>& w, bool add_bias) const;
+  // Contact k's rows of the gradient at x from v, w = velocities(x): J v +
+  // b and, on a yielding contact, E x, as gather then add_softness make them.
+  std::array<double, 3> gradient_rows(std::size_t k, const std::vector<Vec3>& v,
+                                      const std::vector<Vec3>& w, ConstSpan x) const;
+  // The residual of x, its gradient's contact rows by contact_g(k) and
+  // its bilateral rows' by row_g(i).
+  template <class ContactG, class RowG>
+  double residual_of(ConstSpan x, ContactG contact_g, RowG row_g) const;
   void gather_rows(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias,
                    Span y) const;
   // A bound on the largest eigenvalue of one body's part of a contact's

@@ -310,32 +310,14 @@ void make_safe(Guard& c, StepStats& stats) {
   std::vector<Vec3>& w = c.bodies.w;
   const CcpProblem& problem = c.problem;
   const Span gamma = c.gamma;
-  const std::size_t rows = gamma.size(), contact_rows = 3 * problem.contact_count();
-  const Span g = c.scratch.take_gradient(rows);
+  const std::size_t contact_rows = 3 * problem.contact_count();
   bool changed = false;
   if (!stats.solver.converged) {
     // The line search runs over the contacts' rows only: joints and motors
-    // keep their impulses.
-    const Span r = c.scratch.take_bias(rows);
+    // keep their impulses (r is at the joints' impulses alone).
     problem.row_velocities(gamma, c.scratch.base_v, c.scratch.base_w);
-    problem.rows_at(c.scratch.base_v, c.scratch.base_w, r);  // at the joints' impulses alone
-    problem.gradient_at(v, w, gamma, g);  // (N + E) x + r, from the velocities of x
-    // r.x and x.Nx in fixed chunks: the same bits for any thread count.
-    struct Sums {
-      double rx = 0.0, xnx = 0.0;
-      Sums& operator+=(const Sums& o) {
-        rx += o.rx;
-        xnx += o.xnx;
-        return *this;
-      }
-    };
-    const Sums f = reduce_chunks<Sums>(problem.contact_count(), [&](std::size_t begin,
-                                                                     std::size_t end, Sums& part) {
-      for (std::size_t i = 3 * begin; i < 3 * end; ++i) {
-        part.rx += r[i] * gamma[i];
-        part.xnx += gamma[i] * (g[i] - r[i]);
-      }
-    });
+    const CcpProblem::EnergySums f =
+        problem.energy_sums(c.scratch.base_v, c.scratch.base_w, v, w, gamma);
     const double rx = f.rx, xnx = f.xnx;
     if (0.5 * xnx + rx > 0.0) {
       const double scale = xnx > 0.0 ? std::clamp(-rx / xnx, 0.0, 1.0) : 0.0;
@@ -354,10 +336,7 @@ void make_safe(Guard& c, StepStats& stats) {
     problem.velocities(gamma, v, w);  // exactly those of the impulses
     changed = true;
   }
-  if (changed) {
-    problem.gradient_at(v, w, gamma, g);
-    stats.solver.residual = problem.residual(gamma, g);
-  }
+  if (changed) stats.solver.residual = problem.residual_at(v, w, gamma);
 }
 
 // Sliding contacts with walls get the Coulomb law's normal velocity, not the

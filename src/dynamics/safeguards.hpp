@@ -31,16 +31,6 @@ class SafeguardScratch {
   std::vector<std::uint8_t> locked;    // per solver body: guarded in translation only
   std::vector<Vec3> base_v, base_w;    // the velocities of the joints' impulses
   explicit SafeguardScratch(const Model& model);
-  // The energy check's vectors over the rows: N x + r, and r.
-  Span take_gradient(std::size_t rows) { return take(gradient, rows); }
-  Span take_bias(std::size_t rows) { return take(bias, rows); }
-
- private:
-  static Span take(std::vector<double>& v, std::size_t rows) {
-    v.resize(rows);
-    return Span(v.data(), rows);
-  }
-  std::vector<double> gradient, bias;
 };
 
 // The safeguards in the order above. gamma and bodies.v, w: the solve's

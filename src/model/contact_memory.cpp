@@ -8,9 +8,9 @@
 
 namespace ces {
 
-std::size_t ContactMemory::home(const ContactKey& key) const {
+std::uint64_t ContactMemory::hash(const ContactKey& key) {
   const std::uint64_t features = std::uint64_t{key.feature_a} << 32 | key.feature_b;
-  return std::size_t(mix64(key.a ^ mix64(key.b ^ mix64(features)))) & mask_;
+  return mix64(key.a ^ mix64(key.b ^ mix64(features)));
 }
 
 void ContactMemory::assign(const std::vector<ContactKey>& keys, std::vector<Vec3>& values) {
@@ -32,8 +32,11 @@ void ContactMemory::assign(const std::vector<ContactKey>& keys, std::vector<Vec3
 void ContactMemory::build_table() const {
   std::size_t capacity = 16;
   while (capacity < 2 * keys_.size()) capacity *= 2;
-  slots_.assign(capacity, kEmpty);
+  slots_.resize(capacity);
   mask_ = capacity - 1;
+  const auto slots = std::ptrdiff_t(capacity);
+#pragma omp parallel for schedule(static) if (slots > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < slots; ++s) slots_[std::size_t(s)] = kEmpty;
   // The slots are written at random: each is prefetched kAhead keys before
   // its key is placed, so that the cache misses overlap instead of each
   // probe waiting for its own.
@@ -41,32 +44,32 @@ void ContactMemory::build_table() const {
   const std::size_t n = keys_.size(), blocks = (n + kBlock - 1) / kBlock;
 #pragma omp parallel for schedule(static) if (blocks > 1)
   for (std::size_t b = 0; b < blocks; ++b) {
-    std::array<std::size_t, kAhead> ahead;
+    std::array<std::uint64_t, kAhead> ahead;
     const std::size_t begin = b * kBlock, end = std::min(n, begin + kBlock);
     auto prefetch = [&](std::size_t k) {
-      ahead[k % kAhead] = home(keys_[k]);
-      __builtin_prefetch(&slots_[ahead[k % kAhead]], 1);
+      ahead[k % kAhead] = hash(keys_[k]);
+      __builtin_prefetch(&slots_[ahead[k % kAhead] & mask_], 1);
     };
     for (std::size_t k = begin; k < std::min(end, begin + kAhead); ++k) prefetch(k);
     for (std::size_t k = begin; k < end; ++k) {
-      const std::size_t slot = ahead[k % kAhead];
+      const std::uint64_t h = ahead[k % kAhead];
       if (k + kAhead < end) prefetch(k + kAhead);
-      place(slot, std::uint32_t(k));
+      place(h, std::uint32_t(k));
     }
   }
 }
 
-void ContactMemory::place(std::size_t slot, std::uint32_t k) const {
-  for (;;) {
-    std::atomic_ref<std::uint32_t> ref(slots_[slot]);
-    std::uint32_t held = ref.load(std::memory_order_relaxed);
+void ContactMemory::place(std::uint64_t hash, std::uint32_t k) const {
+  for (std::size_t slot = hash & mask_;;) {
+    std::atomic_ref<std::uint64_t> ref(slots_[slot]);
+    std::uint64_t held = ref.load(std::memory_order_relaxed);
     const bool empty = held == kEmpty;
-    if (!empty && !(keys_[held] == keys_[k])) {
+    if (!empty && !holds(held, hash, keys_[k])) {
       slot = (slot + 1) & mask_;
       continue;
     }
-    if (!empty && held < k) return;  // the same key, stored first
-    if (ref.compare_exchange_strong(held, k, std::memory_order_relaxed)) return;
+    if (!empty && std::uint32_t(held) < k) return;  // the same key, stored first
+    if (ref.compare_exchange_strong(held, slot_value(hash, k), std::memory_order_relaxed)) return;
   }
 }
 
@@ -89,13 +92,22 @@ const Vec3* ContactMemory::find_at(const ContactKey& key, std::size_t& cursor) c
 }
 
 const Vec3* ContactMemory::find(const ContactKey& key, std::size_t& cursor) const {
-  if (const Vec3* at = find_at(key, cursor)) return at;
+  // At the cursor or a few keys past it: the contacts the last step had
+  // and this one lost are passed over without a lookup in the table.
+  const std::size_t near = std::min(keys_.size(), cursor + kLookAhead);
+  for (std::size_t k = cursor; k < near; ++k)
+    if (keys_[k] == key) {
+      cursor = k + 1;
+      return &values_[k];
+    }
   if (keys_.empty()) return nullptr;
   index();
-  for (std::size_t s = home(key); slots_[s] != kEmpty; s = (s + 1) & mask_)
-    if (keys_[slots_[s]] == key) {
-      cursor = slots_[s] + 1;
-      return &values_[slots_[s]];
+  const std::uint64_t h = hash(key);
+  for (std::size_t s = h & mask_; slots_[s] != kEmpty; s = (s + 1) & mask_)
+    if (holds(slots_[s], h, key)) {
+      const std::uint32_t k = std::uint32_t(slots_[s]);
+      cursor = std::size_t(k) + 1;
+      return &values_[k];
     }
   return nullptr;
 }

@@ -40,10 +40,10 @@ class ContactMemory {
   // fill next step without allocating.
   void assign(const std::vector<ContactKey>& keys, std::vector<Vec3>& values);
   const Vec3* find(const ContactKey& key) const;  // nullptr: not stored
-  // The same, trying first the key stored at `cursor` and moving it past
-  // the key found: a scan in the order the keys were stored reads them in
-  // sequence and never builds the table (a bed at rest), where hashed
-  // lookups cost a cache miss each. Safe to call
+  // The same, trying first the keys stored at `cursor` and the few after
+  // it, and moving it past the key found: a scan in the order the keys
+  // were stored reads them in sequence and never builds the table (a bed
+  // at rest), where hashed lookups cost a cache miss each. Safe to call
   // from several threads at once.
   const Vec3* find(const ContactKey& key, std::size_t& cursor) const;
   // The key stored at `cursor`'s value (and the cursor past it), or
@@ -60,16 +60,29 @@ class ContactMemory {
   const std::vector<Vec3>& values() const { return values_; }
 
  private:
-  static constexpr std::uint32_t kEmpty = ~std::uint32_t{0};
-  std::size_t home(const ContactKey& key) const;
+  // A slot holds a key's index into keys_ in its low half and the high
+  // half of the key's hash in its high half: a probe passes over a slot
+  // of another key on the hashes alone, without reading keys_ (a cache
+  // miss each).
+  static constexpr std::uint64_t kEmpty = ~std::uint64_t{0};
+  static constexpr std::size_t kLookAhead = 8;  // keys find(key, cursor) tries in order
+  static std::uint64_t hash(const ContactKey& key);
+  static std::uint64_t slot_value(std::uint64_t hash, std::uint32_t k) {
+    return (hash & ~std::uint64_t{0xffffffff}) | k;
+  }
+  // Whether a slot holds `key`, whose hash is `hash`: keys_ is read only
+  // where the hashes' high halves agree.
+  bool holds(std::uint64_t value, std::uint64_t hash, const ContactKey& key) const {
+    return (value ^ hash) >> 32 == 0 && keys_[std::uint32_t(value)] == key;
+  }
   void build_table() const;
-  // Puts key k in the first slot from `slot` on that is empty or holds
+  // Puts key k in the first slot from its home on that is empty or holds
   // the same key stored later.
-  void place(std::size_t slot, std::uint32_t k) const;
+  void place(std::uint64_t hash, std::uint32_t k) const;
   std::vector<ContactKey> keys_;  // in the order stored
   std::vector<Vec3> values_;
   // The hash table, made by the first lookup that misses its cursor.
-  mutable std::vector<std::uint32_t> slots_;  // index into keys_, or kEmpty
+  mutable std::vector<std::uint64_t> slots_;  // slot_value, or kEmpty
   mutable std::size_t mask_ = 0;
   mutable std::atomic<bool> built_{false};
   mutable std::mutex build_;

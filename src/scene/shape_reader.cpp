@@ -59,27 +59,41 @@ std::optional<DrawnShape> ShapeReader::drawn_shape(const Node& c) {
 }
 
 // The rungs of aspect a0 1.1^k (and 1) the drawn aspects [lo, hi] reach.
+// The shapes of those not compiled yet are made side by side, each on a
+// thread: integrating a cluster's mass properties (make_particle_shape) is
+// most of a scene's load, and each rung's is its own.
 std::vector<DrawnShape::Rung> ShapeReader::ladder(const std::string& name, double lo, double hi) {
   const double a0 = name == "flake" ? kFlakeMinAspect : kRodMinAspect;
-  std::vector<double> aspects;
+  std::vector<double> aspects, reached, fresh;
   for (double a = a0; a < 1.0; a *= kLadderRatio) aspects.push_back(a);
   aspects.push_back(1.0);
-  std::vector<DrawnShape::Rung> out;
   for (std::size_t k = 0; k < aspects.size(); ++k) {
     const bool below = k + 1 < aspects.size() && aspects[k + 1] <= lo;
     const bool above = k > 0 && aspects[k - 1] >= hi;
-    if (!below && !above) out.push_back(rung(name, aspects[k]));
+    if (below || above) continue;
+    reached.push_back(aspects[k]);
+    if (!shape_index_.contains(rung_key(name, aspects[k]))) fresh.push_back(aspects[k]);
   }
+  std::vector<ParticleShape> made(fresh.size());
+#pragma omp parallel for schedule(dynamic) if (fresh.size() > 1)
+  for (std::size_t k = 0; k < fresh.size(); ++k) {
+    const feed::SphereList spheres = builtin_spheres(name, fresh[k]);
+    made[k] = make_particle_shape(spheres.centers, spheres.radii);
+  }
+  for (std::size_t k = 0; k < fresh.size(); ++k)
+    shape_index_[rung_key(name, fresh[k])] = add_shape(made[k], nullptr, name);
+  std::vector<DrawnShape::Rung> out;
+  for (const double a : reached) out.push_back(rung(name, a));
   return out;
 }
 
+std::string ShapeReader::rung_key(const std::string& name, double aspect) {
+  return name + "~" + format(aspect);
+}
+
+// A rung of the ladder, its shape compiled (ladder).
 DrawnShape::Rung ShapeReader::rung(const std::string& name, double aspect) {
-  const std::string key = name + "~" + format(aspect);
-  const auto it = shape_index_.find(key);
-  const int index = it != shape_index_.end()
-                        ? *it->second
-                        : add_shape(builtin_spheres(name, aspect), nullptr, name);
-  shape_index_[key] = index;
+  const int index = *shape_index_.at(rung_key(name, aspect));
   const ParticleShape& shape = model_->shapes[std::size_t(index)];
   const double extent =
       name == "flake" ? std::sqrt(4.0 * fields::footprint_area(shape) / kPi) : 1.0;
@@ -122,7 +136,8 @@ std::optional<int> ShapeReader::particle_shape(const Node& component) {
   }
   const auto spheres = entry ? cluster_spheres(*entry) : builtin_spheres(name, *aspect);
   std::optional<int> index;
-  if (spheres) index = add_shape(*spheres, entry, name);
+  if (spheres)
+    index = add_shape(make_particle_shape(spheres->centers, spheres->radii), entry, name);
   shape_index_[key] = index;
   return index;
 }
@@ -203,9 +218,8 @@ std::optional<feed::SphereList> ShapeReader::cluster_spheres(const Node& entry) 
 // the built-in flake and rod the diameter of the sphere of equal volume,
 // so that a size law gives the same masses whatever the built-in shape
 // (the unit sphere's is exactly 1).
-int ShapeReader::add_shape(const feed::SphereList& spheres, const Node* entry,
+int ShapeReader::add_shape(const ParticleShape& shape, const Node* entry,
                            const std::string& name) {
-  const ParticleShape shape = make_particle_shape(spheres.centers, spheres.radii);
   const Node* size = entry ? entry->find("size") : nullptr;
   if (size)
     sizes_.push_back(size->number());

@@ -44,13 +44,14 @@ class ShapeReader {
 
   std::vector<DrawnShape::Rung> ladder(const std::string& name, double lo, double hi);
   DrawnShape::Rung rung(const std::string& name, double aspect);
+  static std::string rung_key(const std::string& name, double aspect);
   static bool is_builtin_shape(const std::string& name);
   void report_unknown_shape(const Node& ref, const Node* shapes);
   std::optional<double> shape_aspect(const Node& component, const std::string& name,
                                      bool scene_entry);
   static feed::SphereList builtin_spheres(const std::string& name, double aspect);
   std::optional<feed::SphereList> cluster_spheres(const Node& entry);
-  int add_shape(const feed::SphereList& spheres, const Node* entry, const std::string& name);
+  int add_shape(const ParticleShape& shape, const Node* entry, const std::string& name);
   std::optional<feed::SizeDistribution> sieve(const Node& rows, feed::Basis basis);
   std::nullopt_t sieve_error(const Node& row, const std::string& what);
 
