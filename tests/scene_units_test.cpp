@@ -164,7 +164,10 @@ TEST(SceneSchema, MinimalSceneGetsDefaults) {
   EXPECT_EQ(sim.name, "tiny");
   EXPECT_EQ(sim.seed, 0u);
   EXPECT_EQ(sim.model->solver.method, SolverMethod::APGD);
-  EXPECT_EQ(sim.model->solver.max_iterations, 100);
+  // The accuracy a scene without a solver section gets, not a fixed count.
+  EXPECT_DOUBLE_EQ(sim.model->solver.tolerance, 1e-3);
+  EXPECT_DOUBLE_EQ(sim.model->solver.penetration_tolerance, 0.1);
+  EXPECT_EQ(sim.model->solver.max_iterations, 200);
   EXPECT_DOUBLE_EQ(sim.model->contact.envelope_fraction, 0.25);
   EXPECT_EQ(sim.model->gravity, Vec3::Zero());
   EXPECT_EQ(sim.output.dir, "out");
