@@ -127,6 +127,17 @@ TEST(Study, ErrorsShrinkWithTheStepAndTheReferenceIsExact) {
   EXPECT_TRUE(test::fs::exists(dir / "case_2" / "report.html"));
 }
 
+// A study of tolerances at one step: the reference is the tightest case,
+// whatever order the axis lists them in.
+TEST(Study, TheTightestToleranceIsTheReference) {
+  const path dir = test::fresh_dir("study_tolerance");
+  const test::Outcome r = test::ces_sim(
+      "study " + kScene + " --vary solver.tolerance=10mm/s,0.1mm/s,1mm/s --jobs 2 -o " +
+      dir.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("reference: " + (dir / "case_1").string()), std::string::npos) << r.out;
+}
+
 // --list-cases: one line per case, K then its --set list; --case K runs that
 // case only; the full study then reuses it rather than running it again.
 TEST(Study, ListAndSelectCases) {

@@ -236,25 +236,32 @@ std::string fmt(double v) { return std::isinf(v) ? "inf" : output::format_number
 
 // ---------------------------------------------------------------- the plot
 
-// A line of the plot: the values of the axes other than step and iteration
-// cap (those move along a line), or the run's solver method. DEM runs use no
-// contact solver, so solver settings do not split their line.
+// The keys that set how much work a run does for its accuracy: a line of
+// the plot moves along them.
+bool work_key(const std::string& k) {
+  return k == "time.step" || k == "solver.max_iterations" || k == "solver.tolerance" ||
+         k == "solver.penetration_tolerance";
+}
+
+// A line of the plot: the values of the axes other than the work keys, or
+// the run's solver method. DEM runs use no contact solver, so solver
+// settings do not split their line.
 std::string series(const Row& r) {
   const bool dem = r.contact_model == "dem";
   std::string label;
   for (const auto& [k, v] : r.c.sets) {
     const bool solver_key = k.starts_with("solver.");
-    if (k == "time.step" || k == "solver.max_iterations" || (dem && solver_key)) continue;
+    if (work_key(k) || (dem && solver_key)) continue;
     label += (label.empty() ? "" : " ") + v;
   }
   return !label.empty() ? label : dem ? "dem" : r.method;
 }
 
-// What varies along a series' line: the case's step and iteration cap.
+// What varies along a series' line: the case's work keys.
 std::string point_label(const Row& r) {
   std::string label;
   for (const auto& [k, v] : r.c.sets)
-    if (k == "time.step" || k == "solver.max_iterations") label += (label.empty() ? "" : " ") + v;
+    if (work_key(k)) label += (label.empty() ? "" : " ") + v;
   return !label.empty() ? label : "case " + std::to_string(r.c.index);
 }
 
@@ -399,9 +406,10 @@ std::vector<std::string> case_arguments(const Options& o, const Case& c) {
 }
 
 std::size_t finest_case(const Options& o, const std::vector<Case>& cases) {
-  using Finest = std::tuple<bool, double, int>;
+  using Finest = std::tuple<bool, double, double, double, int>;
+  constexpr double kInf = std::numeric_limits<double>::infinity();
   std::size_t best = 0;
-  Finest best_key{true, std::numeric_limits<double>::infinity(), 0};
+  Finest best_key{true, kInf, kInf, kInf, 0};
   for (const Case& c : cases) {
     scene::LoadOptions lo;
     lo.overrides = o.base_sets;
@@ -410,9 +418,11 @@ std::size_t finest_case(const Options& o, const std::vector<Case>& cases) {
     const Simulation sim = scene::load(o.scene, lo);
     // DVI before DEM (the method under study; a DEM run at its tiny step is
     // not the finer solution of the rigid problem), then the smallest step,
-    // then the largest iteration cap.
+    // then the tightest residual and overlap tolerances, then the largest
+    // iteration cap.
+    const SolverSettings& solver = sim.model->solver;
     const Finest key{sim.model->contact_model == ContactModel::DEM, sim.model->step,
-                     -sim.model->solver.max_iterations};
+                     solver.tolerance, solver.penetration_tolerance, -solver.max_iterations};
     if (key < best_key) {
       best_key = key;
       best = c.index;
