@@ -36,6 +36,10 @@ std::uint64_t stream_seed(std::uint64_t scene_seed, std::string_view feed_name) 
   return splitmix64(scene_seed ^ splitmix64(fnv1a(feed_name)));
 }
 
+std::uint64_t particle_seed(std::uint64_t feed_stream, std::uint64_t ordinal) {
+  return splitmix64(feed_stream ^ splitmix64(ordinal));
+}
+
 Tally FeedStats::total() const {
   Tally t;
   for (const Tally& c : fed) t += c;
@@ -43,7 +47,7 @@ Tally FeedStats::total() const {
 }
 
 Feeder::Feeder(const Feed& feed, std::uint64_t scene_seed, const Model& model)
-    : feed_(feed), model_(&model), rng_(stream_seed(scene_seed, feed.name)) {
+    : feed_(feed), model_(&model), stream_(stream_seed(scene_seed, feed.name)) {
   if (feed_.mix.empty()) throw std::invalid_argument("feed '" + feed_.name + "' has no mix");
   stats_.fed.resize(feed_.mix.size());
   for (const FeedComponent& c : feed_.mix) {
@@ -112,6 +116,7 @@ int Feeder::choose_component() const {
 // thickness and a width or length, which pick the contact shape and give
 // the mass and inertia.
 Feeder::Candidate Feeder::draw_candidate() {
+  rng_.seed(particle_seed(stream_, stats_.total().count));
   Candidate c;
   c.component = choose_component();
   const FeedComponent& comp = feed_.mix[std::size_t(c.component)];

@@ -10,8 +10,12 @@
 // Placement: uniform in the region with a uniform random orientation, free of
 // machine bodies (at their pose now) and of particles; after max_attempts
 // failures the particle waits for the next step (a deferral).
-// Randomness: one std::mt19937_64 per feed, seeded from (scene seed, feed
-// name), so adding or changing a feed never changes another feed's stream.
+// Randomness: each particle draws from its own std::mt19937_64, seeded from
+// (scene seed, feed name, the particle's place in the feed's order), so
+// adding or changing a feed never changes another feed's particles, and a
+// placement retry (which depends on where earlier particles went) never
+// changes the particles after it: runs of one scene at other settings feed
+// the same particles, and their products differ by what the settings do.
 #pragma once
 #include <cstdint>
 #include <optional>
@@ -31,6 +35,8 @@ namespace ces::feed {
 // splitmix64(seed ^ splitmix64(FNV-1a 64 of the name)): fixed across
 // platforms and standard libraries.
 std::uint64_t stream_seed(std::uint64_t scene_seed, std::string_view feed_name);
+// The seed of the feed's particle number `ordinal` (0 for its first).
+std::uint64_t particle_seed(std::uint64_t feed_stream, std::uint64_t ordinal);
 
 struct FeedStats {
   std::vector<Tally> fed;  // per mix component
@@ -84,7 +90,8 @@ class Feeder {
 
   Feed feed_;
   const Model* model_;
-  std::mt19937_64 rng_;
+  std::uint64_t stream_;  // stream_seed of this feed
+  std::mt19937_64 rng_;   // the stream of the particle being drawn or placed
   FeedStats stats_;
   std::optional<Candidate> pending_;     // drawn but not yet placed
   double max_bounding_radius_ = 0.0;     // of any particle this feed can draw
