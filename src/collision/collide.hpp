@@ -15,7 +15,7 @@ class Collider {
  public:
   // Each particle's collision envelope for this step, and the pairs of
   // particles whose envelopes overlap.
-  void broadphase(const Model& model, const Particles& particles);
+  void broadphase(const Model& model, const Particles& particles, const Bodies& bodies);
   // Fills `out` with every pair closer than its collision envelope, in a
   // deterministic order: particle pairs by (i, j), then particle-body
   // contacts by (body, particle, sphere, feature). After broadphase().
@@ -23,6 +23,7 @@ class Collider {
                    Contacts& out);
 
  private:
+  void struck_by_body(const Model& model, const Particles& p, const Bodies& bodies, int body);
   void particle_pairs(const Model& model, const Particles& p, Contacts& out);
   void body_contacts(const Model& model, const Particles& p, const Bodies& bodies, int body,
                      Contacts& out);

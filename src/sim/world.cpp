@@ -114,7 +114,7 @@ void World::broadphase() {
   const Model& m = *model_;
   if (m.reorder_interval > 0 && state_.steps % std::uint64_t(m.reorder_interval) == 0)
     spatial_order_.apply(m, state_.particles);
-  collider_.broadphase(m, state_.particles);
+  collider_.broadphase(m, state_.particles, state_.bodies);
 }
 
 void World::narrowphase() {
