@@ -456,6 +456,26 @@ TEST(Cli, ProgressLinesInALogAtTheInterval) {
   EXPECT_LE(double(n), wall / kInterval + 1.0) << o.err;
 }
 
+// A run until collected ends when its particles are, long before time.end:
+// its progress lines give time.end as the cap it is, with no estimate
+// taken from it.
+TEST(Cli, ProgressUntilCollectedGivesTheCapAndNoEstimate) {
+  ::setenv("CES_PROGRESS_INTERVAL", "1e-6", 1);  // a line at every step
+  const fs::path dir = fresh_dir("progress_collected");
+  const Outcome o = ces_sim(scene("tiny.yaml") +
+                            " --set time.end=2s --set time.until=collected --threads 1 -o " +
+                            dir.string());
+  ::unsetenv("CES_PROGRESS_INTERVAL");
+  ASSERT_EQ(o.code, 0) << o.err;
+  const std::regex line(
+      R"(progress: t (\S+) s \(until collected, at most 2 s\)  wall (\S+) s  particles \d+  contacts \d+)");
+  std::istringstream lines(o.err);
+  std::size_t n = 0;
+  for (std::string text; std::getline(lines, text); ++n)
+    ASSERT_TRUE(std::regex_match(text, line)) << text;
+  EXPECT_GT(n, 10u);
+}
+
 TEST(Cli, SigtermStopsTheRunKeepsItsOutputsAsideAndExitsThree) {
   const fs::path dir = fresh_dir("sigterm");
   const std::string out = dir.string();

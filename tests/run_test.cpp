@@ -514,6 +514,29 @@ TEST(RunOutputs, CallerWatchSeesTheLastStep) {
   EXPECT_EQ(steps, std::vector<std::uint64_t>{150});
 }
 
+// With until: collected the run ends before time.end: the caller's last
+// call comes at the step that ends it and says the run ends there (a
+// progress bar reaches its end), and returning true then stops nothing.
+TEST(RunOutputs, CallerWatchSeesTheRunEndWhenCollected) {
+  const fs::path dir = fresh_dir("watch_collected");
+  Simulation sim = small_run(dir);
+  sim.end_time = 1.0;
+  sim.until_collected = true;
+  sim.feeds[0].duration = 0.02;
+  std::vector<RunProgress> seen;
+  RunOptions options{.out_dir = "", .progress = false, .quiet = true};
+  options.on_progress_every = 1e9;
+  options.on_progress = [&](const RunProgress& p) {
+    seen.push_back(p);
+    return true;
+  };
+  const RunResult r = run(sim, options);
+  EXPECT_TRUE(r.complete) << r.reason;
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_LT(seen[0].time, 0.5);
+  EXPECT_EQ(seen[0].end_time, seen[0].time);
+}
+
 // The caller's thread count wins over the scene's, as --threads does.
 TEST(RunOutputs, CallerFixesTheThreadCount) {
   const fs::path dir = fresh_dir("threads");

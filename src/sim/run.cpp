@@ -78,15 +78,24 @@ class Progress {
   Progress(const Progress&) = delete;
   Progress& operator=(const Progress&) = delete;
 
-  void update(const World& world, double end_time, double wall) {
+  // A run until collected ends when its particles are: time.end is only its
+  // cap, and an estimate from it would be far off.
+  void update(const World& world, const Simulation& sim, double wall) {
     if (!due(wall)) return;
     last_ = wall;
     drawn_ = terminal_;
-    const double done = world.time() / end_time;
-    const double eta = done > 0 ? wall * (1.0 - done) / done : 0.0;
-    std::fprintf(stderr, "%st %.4g / %.4g s  wall %.1f s  ETA %.0f s  particles %zu  contacts %zu%s",
-                 terminal_ ? "\r\033[K" : "progress: ", world.time(), end_time, wall, eta,
-                 world.particles().size(), world.contacts().size(), terminal_ ? "" : "\n");
+    char time[96];
+    if (sim.until_collected) {
+      std::snprintf(time, sizeof time, "t %.4g s (until collected, at most %.4g s)  wall %.1f s",
+                    world.time(), sim.end_time, wall);
+    } else {
+      const double done = world.time() / sim.end_time;
+      const double eta = done > 0 ? wall * (1.0 - done) / done : 0.0;
+      std::snprintf(time, sizeof time, "t %.4g / %.4g s  wall %.1f s  ETA %.0f s", world.time(),
+                    sim.end_time, wall, eta);
+    }
+    std::fprintf(stderr, "%s%s  particles %zu  contacts %zu%s", terminal_ ? "\r\033[K" : "progress: ",
+                 time, world.particles().size(), world.contacts().size(), terminal_ ? "" : "\n");
     std::fflush(stderr);
   }
 
@@ -184,7 +193,7 @@ class Runner {
   void start();
   void write_field_picture();
   void step_to_end();
-  bool caller_stops(std::uint64_t steps);
+  bool caller_stops(std::uint64_t steps, bool last);
   void checkpoint();
   void write_outputs();
   void publish(output::RunRecord& r);
@@ -299,12 +308,14 @@ void Runner::step_to_end() {
     output_seconds_ += world_.step(&observers_).seconds[Stage::Output];
     threads_.took(seconds_since(t0));
     if (checkpoint_steps_ > 0 && world_.step_count() % checkpoint_steps_ == 0) checkpoint();
-    progress.update(world_, sim_.end_time, seconds_since(start_));
-    if (caller_stops(steps) && world_.step_count() < steps) {
+    progress.update(world_, sim_, seconds_since(start_));
+    const bool collected = sim_.until_collected && feed_accounted_for(world_);
+    const bool last = collected || world_.step_count() >= steps;
+    if (caller_stops(steps, last) && !last) {
       reason_ = "stopped by the caller";
       return;
     }
-    if (sim_.until_collected && feed_accounted_for(world_)) break;
+    if (collected) break;
   }
   if (sim_.until_collected && !feed_accounted_for(world_)) {
     reason_ = cap_message(sim_, world_);
@@ -314,14 +325,16 @@ void Runner::step_to_end() {
 }
 
 // The caller's on_progress, when due: true when it asks the run to stop.
-bool Runner::caller_stops(std::uint64_t steps) {
+bool Runner::caller_stops(std::uint64_t steps, bool last) {
   if (!options_.on_progress) return false;
   const double wall = seconds_since(start_);
-  if (wall - watched_at_ < options_.on_progress_every && world_.step_count() < steps) return false;
+  if (wall - watched_at_ < options_.on_progress_every && !last) return false;
   watched_at_ = wall;
   const auto t0 = Clock::now();
+  // At the last step the run ends now, whatever time.end says.
+  const double end = last ? world_.time() : sim_.end_time;
   const bool stop = options_.on_progress(
-      {world_.time(), sim_.end_time, world_.step_count(), world_.particles().size(), wall});
+      {world_.time(), end, world_.step_count(), world_.particles().size(), wall});
   output_seconds_ += seconds_since(t0);
   return stop;
 }

@@ -15,7 +15,8 @@ namespace ces {
 // Where a run is, for a caller that watches it (RunOptions::on_progress).
 struct RunProgress {
   double time = 0.0;          // simulated (s)
-  double end_time = 0.0;      // the scene's end time (s)
+  double end_time = 0.0;      // the scene's end time (s); at the last step, the time now
+                              // (a run until collected ends before time.end)
   std::uint64_t steps = 0;    // steps taken
   std::size_t particles = 0;  // particles in the run
   double wall = 0.0;          // wall time since the run started (s)
@@ -26,9 +27,10 @@ struct RunOptions {
   bool progress = false; // a progress line on stderr, redrawn in place (a terminal)
   bool quiet = false;    // no end-of-run report on stdout
   // Called between steps once on_progress_every seconds of wall time have
-  // passed since its last call, and after the last step. Returning true
-  // stops the run before its next step; it then ends incomplete, "stopped
-  // by the caller". Its time counts in the output stage.
+  // passed since its last call, and after the last step (with until:
+  // collected, the step that accounts for the last particle). Returning
+  // true stops the run before its next step; it then ends incomplete,
+  // "stopped by the caller". Its time counts in the output stage.
   std::function<bool(const RunProgress&)> on_progress = {};
   double on_progress_every = 1.0;
   int threads = 0;  // worker threads, as --threads; 0: the scene's (Model::threads)
