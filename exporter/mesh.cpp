@@ -8,6 +8,8 @@
 #include <tuple>
 #include <unordered_map>
 
+#include "common/hash.hpp"
+
 namespace ces::exporter {
 namespace {
 
@@ -16,8 +18,8 @@ using Cell = std::array<std::int64_t, 3>;
 struct CellHash {
   std::size_t operator()(const Cell& c) const {
     // Lookup only (never iterated), so the hash cannot change any output.
-    std::uint64_t h = 1469598103934665603ull;
-    for (std::int64_t v : c) h = (h ^ std::uint64_t(v)) * 1099511628211ull;
+    std::uint64_t h = 0;
+    for (std::int64_t v : c) h = splitmix64(h ^ std::uint64_t(v));
     return std::size_t(h);
   }
 };
