@@ -21,32 +21,8 @@
 namespace ces::fields {
 namespace {
 
-using test::carried_spin;
-using test::carried_velocity;
-using test::drum;
-using test::drum_load;
-using test::electrostatics;
-using test::ForceProbe;
-using test::image_pull;
-using test::induced_charge;
-using test::kCopper;
-using test::kDeg;
-using test::kDrumRadius;
-using test::kEps0;
-using test::kEpsAir;
-using test::kFr4;
-using test::kFr4Permittivity;
-using test::kG;
-using test::kHalfWidth;
-using test::kSphere;
-using test::lift_force;
-using test::make_model;
-using test::MaterialSpec;
-using test::no_field;
-using test::on_drum;
-using test::reference_field;
-using test::rpm;
-using test::saturation_zone;
+// The separator tests' shared machine, materials and closed forms.
+using namespace test;
 
 // --------------------------------------------------------------- charging --
 

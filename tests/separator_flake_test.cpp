@@ -28,30 +28,8 @@
 namespace ces::fields {
 namespace {
 
-using test::carried_velocity;
-using test::drum;
-using test::electrical;
-using test::electrostatics;
-using test::ForceProbe;
-using test::image_pull;
-using test::kCopper;
-using test::kDeg;
-using test::kDrumRadius;
-using test::kEps0;
-using test::kEpsAir;
-using test::kFr4;
-using test::kFr4Permittivity;
-using test::kPair;
-using test::kSphere;
-using test::make_model;
-using test::MaterialSpec;
-using test::no_field;
-using test::on_drum;
-using test::reference_field;
-using test::rpm;
-using test::saturation_zone;
-using test::SingleThread;
-using test::theta_of;
+// The separator tests' shared machine, materials and closed forms.
+using namespace test;
 
 // ----------------------------------------------------------- flat flakes --
 

@@ -20,28 +20,8 @@
 namespace ces::fields {
 namespace {
 
-using test::carried_spin;
-using test::carried_velocity;
-using test::drum;
-using test::drum_load;
-using test::electrostatics;
-using test::ForceProbe;
-using test::kCopper;
-using test::kDeg;
-using test::kDrumRadius;
-using test::kFr4;
-using test::kFr4Permittivity;
-using test::kG;
-using test::kPair;
-using test::kSphere;
-using test::lift_force;
-using test::make_model;
-using test::MaterialSpec;
-using test::on_drum;
-using test::reference_field;
-using test::rpm;
-using test::SingleThread;
-using test::theta_of;
+// The separator tests' shared machine, materials and closed forms.
+using namespace test;
 
 // ------------------------------------------------------------ lift-off --
 
