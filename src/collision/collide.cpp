@@ -269,6 +269,16 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
     if (keep[k]) push(c[k]);
 }
 
+// How far any point of a body moves in a step, for the culls: it turns
+// about its frame's origin, reaching at most the farthest corner of its
+// bounds. (A plane's are infinite: only a turning body adds the term.)
+double travel_in_step(const geo::Aabb& bounds, const Vec3& v, const Vec3& w, double h) {
+  const double w_norm = w.norm();
+  const double swing =
+      w_norm > 0.0 ? w_norm * bounds.min.cwiseAbs().cwiseMax(bounds.max.cwiseAbs()).norm() : 0.0;
+  return (v.norm() + swing) * h;
+}
+
 // target = max(target, value), atomically: threads may raise one target.
 void raise_to(double& target, double value) {
   std::atomic_ref<double> ref(target);
@@ -362,8 +372,7 @@ void Collider::struck_by_body(const Model& model, const Particles& p, const Bodi
   const Pose& pose = bodies.pose[std::size_t(body)];
   const geo::Aabb bounds = geo::local_bounds(rb.shape);
   const double h = model.step;
-  const double swing = w_body.norm() * bounds.min.cwiseAbs().cwiseMax(bounds.max.cwiseAbs()).norm();
-  const double body_travel = (v_body.norm() + swing) * h;
+  const double body_travel = travel_in_step(bounds, v_body, w_body, h);
   const Mat3 to_local = pose.orientation.conjugate().toRotationMatrix();
   const Mat3 to_world = pose.orientation.toRotationMatrix();
   const std::size_t n = p.size();
@@ -486,13 +495,8 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   const geo::Aabb bounds = geo::local_bounds(rb.shape);
   const Vec3& v_body = bodies.velocity[std::size_t(body)];
   const Vec3& w_body = bodies.angular_velocity[std::size_t(body)];
-  // How far any point of the body moves this step, for the cull: it turns
-  // about its frame's origin, reaching at most the farthest corner of its
-  // bounds. (A plane's are infinite: only a turning body adds the term.)
   const double w_norm = w_body.norm(), v_norm = v_body.norm();
-  const double swing =
-      w_norm > 0.0 ? w_norm * bounds.min.cwiseAbs().cwiseMax(bounds.max.cwiseAbs()).norm() : 0.0;
-  const double body_travel = (v_norm + swing) * model.step;
+  const double body_travel = travel_in_step(bounds, v_body, w_body, model.step);
   // Matrices, not the quaternion, for the many points taken to the body's
   // frame and normals taken back.
   const Mat3 to_local = pose.orientation.conjugate().toRotationMatrix();
