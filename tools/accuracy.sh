@@ -2,12 +2,12 @@
 # Regenerates docs/accuracy_defaults.md: runs scenes/ces_pcb.yaml at its
 # own settings and a reference of it converged in its solve (half the
 # step, a hundredth of its residual tolerance, a fifth of its penetration
-# tolerance) at several seeds, and writes the error of the products and of the landing
-# distributions against the reference, with the cost of each run and the
-# overlaps each left. A seed feeds the same particles at any setting, so
-# the products are compared particle by particle: the error's standard
-# error is what the settings' differences give, not the sampling of the
-# feed.
+# tolerance) at several seeds, and writes the error of the products and
+# of the landing distributions against the reference, with the cost of
+# each run and the overlaps each left. A seed feeds the same particles at
+# any setting, so the products are compared particle by particle: the
+# error's standard error is what the settings' differences give, not the
+# sampling of the feed.
 # Needs a built ces-sim (default build/ces-sim) and python3.
 # Usage: tools/accuracy.sh [--report-only] [path/to/ces-sim]
 # (--report-only: the runs in out/accuracy as they are, the document again.)
