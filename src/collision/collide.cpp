@@ -186,15 +186,28 @@ struct PairMotion {
 // keeps its corners alone.
 void keep_unheld(const std::vector<Candidate>& c, const Vec3& n_g, const Hull& hull,
                  const PairMotion& motion, double tolerance, std::vector<std::uint8_t>& keep) {
+  // A group the hull and the deepest hold whole (a 7-sphere flake: its
+  // ring and centre) has no member left to test.
+  bool all_kept = true;
+  for (std::size_t i = 0; i < hull.count && all_kept; ++i) all_kept = keep[hull.members[i].k];
+  if (all_kept) return;
   auto slack = [&](std::size_t k) {
     return (c[k].normal - n_g).norm() * motion.travel(c[k].point);
   };
   static thread_local std::vector<double> closing;  // per corner: gap + slack
   closing.resize(hull.corner_count);
   double most = -std::numeric_limits<double>::infinity();
+  const std::size_t last = hull.corner_count - 1;
   for (std::size_t i = 0; i < hull.corner_count; ++i) {
     const std::size_t k = hull.corners[i].k;
-    closing[i] = c[k].gap + slack(k);
+    // The chains' ends appear twice (Hull): their slack, two square roots,
+    // is taken once.
+    if (i > 0 && k == hull.corners[i - 1].k)
+      closing[i] = closing[i - 1];
+    else if (i == last && i > 0 && k == hull.corners[0].k)
+      closing[i] = closing[0];
+    else
+      closing[i] = c[k].gap + slack(k);
     most = std::max(most, closing[i]);
   }
   for (std::size_t i = 0; i < hull.count; ++i) {
