@@ -100,20 +100,67 @@ struct Hull {
   std::size_t count = 0;
   const Planar* corners = nullptr;
   std::size_t corner_count = 0;
-  // `value` (one per corner) interpolated linearly at p, on the fan of
-  // triangles from the first corner; `outside` if no triangle holds p (a
-  // hull with no area: members in a line).
-  double interpolate(const Planar& p, const std::vector<double>& value, double outside) const;
 };
 
-double Hull::interpolate(const Planar& p, const std::vector<double>& value, double outside) const {
-  constexpr double kEdge = 1e-9;  // of the triangle's area: a point on an edge is in it
-  const Planar& o = corners[0];
-  for (std::size_t i = 1; i + 1 < corner_count; ++i) {
-    const Planar &a = corners[i], &b = corners[i + 1];
-    const double area = cross(o, a, b);
+// A hull's fan of triangles from its first corner o, for interpolating at
+// its many members: each corner's offset from o and each triangle's (o, i,
+// i + 1) doubled area, made once per hull, where each member would make
+// them again. A member's weights in a triangle are cross()'s own numbers.
+class Fan {
+ public:
+  explicit Fan(const Hull& hull);
+  // `value` (one per corner) interpolated linearly at p, on the first
+  // triangle that holds it; `outside` if none does (a hull with no area:
+  // members in a line).
+  double interpolate(const Planar& p, const std::vector<double>& value, double outside) const;
+
+ private:
+  static constexpr double kEdge = 1e-9;  // of the triangle's area: a point on an edge is in it
+  const Hull& hull_;
+  // In the thread's buffer (per corner: dx, dy; per triangle: area, and
+  // below it a weight surely under -kEdge), until the next Fan.
+  const double *dx_ = nullptr, *dy_ = nullptr, *area_ = nullptr, *below_ = nullptr;
+};
+
+Fan::Fan(const Hull& hull) : hull_(hull) {
+  static thread_local std::vector<double> buffer;
+  const std::size_t n = hull.corner_count;
+  buffer.resize(4 * n);
+  double* dx = buffer.data();
+  double* dy = dx + n;
+  double* area = dy + n;
+  double* below = area + n;
+  const Planar& o = hull.corners[0];
+  for (std::size_t i = 0; i < n; ++i) {
+    dx[i] = hull.corners[i].x - o.x;
+    dy[i] = hull.corners[i].y - o.y;
+  }
+  for (std::size_t i = 1; i + 1 < n; ++i) {
+    area[i] = dx[i] * dy[i + 1] - dy[i] * dx[i + 1];  // cross(o, a, b)
+    // A cross product under this has a weight under -kEdge whatever the
+    // division rounds to: most triangles are passed over without one. (An
+    // area so small that the bound would round coarsely, near the
+    // subnormals, leaves every triangle to the division.)
+    below[i] = area[i] > 1e-290 ? -kEdge * area[i] * (1.0 + 1e-6)
+                                : -std::numeric_limits<double>::infinity();
+  }
+  dx_ = dx;
+  dy_ = dy;
+  area_ = area;
+  below_ = below;
+}
+
+double Fan::interpolate(const Planar& p, const std::vector<double>& value, double outside) const {
+  const Planar& o = hull_.corners[0];
+  const double px = p.x - o.x, py = p.y - o.y;
+  for (std::size_t i = 1; i + 1 < hull_.corner_count; ++i) {
+    const double area = area_[i];
     if (!(area > 0.0)) continue;
-    const double s = cross(o, p, b) / area, t = cross(o, a, p) / area;
+    const double cs = px * dy_[i + 1] - py * dx_[i + 1];  // cross(o, p, b)
+    if (cs < below_[i]) continue;
+    const double ct = dx_[i] * py - dy_[i] * px;  // cross(o, a, p)
+    if (ct < below_[i]) continue;
+    const double s = cs / area, t = ct / area;
     if (s < -kEdge || t < -kEdge || s + t > 1.0 + kEdge) continue;
     return (1.0 - s - t) * value[0] + s * value[i] + t * value[i + 1];
   }
@@ -210,11 +257,12 @@ void keep_unheld(const std::vector<Candidate>& c, const Vec3& n_g, const Hull& h
       closing[i] = c[k].gap + slack(k);
     most = std::max(most, closing[i]);
   }
+  const Fan fan(hull);
   for (std::size_t i = 0; i < hull.count; ++i) {
     const Planar& p = hull.members[i];
     if (keep[p.k]) continue;
     const double allowed = c[p.k].gap - slack(p.k) + tolerance * c[p.k].radius;
-    if (allowed < most && allowed < hull.interpolate(p, closing, most)) keep[p.k] = 1;
+    if (allowed < most && allowed < fan.interpolate(p, closing, most)) keep[p.k] = 1;
   }
 }
 
