@@ -196,14 +196,38 @@ bool Feeder::overlaps_particles(const State& state, const Candidate& c, const Ve
   const ParticleShape& s = model_->shapes.at(std::size_t(c.shape));
   const double radius = c.scale * s.bounding_radius;
   const Particles& p = state.particles;
-  for (const std::size_t i : neighbours_) {
+  bool overlap = false;
+  for_each_neighbour_near(x, [&](std::size_t i) {
     const ParticleShape& o = model_->shapes[std::size_t(p.shape[i])];
     const double reach = radius + p.scale[i] * o.bounding_radius;
-    if ((p.position[i] - x).squaredNorm() >= reach * reach) continue;
-    if (clusters_overlap(s, c.scale, x, q, o, p.scale[i], p.position[i], p.orientation[i]))
-      return true;
+    if ((p.position[i] - x).squaredNorm() >= reach * reach) return false;
+    overlap = clusters_overlap(s, c.scale, x, q, o, p.scale[i], p.position[i], p.orientation[i]);
+    return overlap;
+  });
+  return overlap;
+}
+
+// fn(i) for the neighbours i that may be within reach of x (a point of the
+// region), until it returns true.
+template <class Fn>
+void Feeder::for_each_neighbour_near(const Vec3& x, Fn&& fn) const {
+  const Grid& g = grid_;
+  std::array<std::size_t, 3> lo, hi;
+  for (int k = 0; k < 3; ++k) {
+    const double at = std::floor((x[k] - g.min[k]) * g.inv_cell);
+    const double last = double(g.cells[k] - 1);
+    lo[k] = std::size_t(std::clamp(at - 1.0, 0.0, last));
+    hi[k] = std::size_t(std::clamp(at + 1.0, 0.0, last));
   }
-  return false;
+  for (std::size_t cx = lo[0]; cx <= hi[0]; ++cx)
+    for (std::size_t cy = lo[1]; cy <= hi[1]; ++cy)
+      for (std::size_t cz = lo[2]; cz <= hi[2]; ++cz) {
+        const std::size_t cell = (cx * g.cells[1] + cy) * g.cells[2] + cz;
+        for (std::size_t e = g.start[cell]; e < g.start[cell + 1]; ++e)
+          if (fn(g.entry[e])) return;
+      }
+  for (std::size_t e = g.gridded; e < neighbours_.size(); ++e)
+    if (fn(neighbours_[e])) return;
 }
 
 // Candidates for contact with a new particle: within reach of the region.
@@ -218,7 +242,45 @@ void Feeder::find_neighbours(const State& state) {
         (region.min - p.position[i]).cwiseMax(p.position[i] - region.max).cwiseMax(0.0);
     if (outside.squaredNorm() <= reach * reach) neighbours_.push_back(i);
   }
+  double largest = 0.0;  // of the neighbours' bounding radii
+  for (const std::size_t i : neighbours_)
+    largest = std::max(largest, p.scale[i] * model_->shapes[std::size_t(p.shape[i])].bounding_radius);
+  sort_neighbours(p, max_bounding_radius_ + largest);
   neighbours_valid_ = true;
+}
+
+// Cells a little wider than `reach` (rounding then never puts a neighbour
+// in reach two cells away), over the region grown by it, where every
+// neighbour lies; wider still where they would outnumber the neighbours
+// several times over. A counting sort by cell.
+void Feeder::sort_neighbours(const Particles& p, double reach) {
+  Grid& g = grid_;
+  const geo::Aabb box = feed_.region.inflated(reach);
+  const Vec3 extent = box.max - box.min;
+  const double most = std::max(4096.0, 4.0 * double(neighbours_.size()));
+  double cell = reach > 0.0 ? reach * (1.0 + 1e-6) : 1.0;
+  auto count = [&](int k) { return std::max(1.0, std::ceil(extent[k] / cell)); };
+  while (count(0) * count(1) * count(2) > most) cell *= 2.0;
+  g.min = box.min;
+  g.inv_cell = 1.0 / cell;
+  for (int k = 0; k < 3; ++k) g.cells[std::size_t(k)] = std::size_t(count(k));
+  auto cell_of = [&](const Vec3& x) {
+    std::size_t id = 0;
+    for (int k = 0; k < 3; ++k) {
+      const double at = std::floor((x[k] - g.min[k]) * g.inv_cell);
+      id = id * g.cells[std::size_t(k)] +
+           std::size_t(std::clamp(at, 0.0, double(g.cells[std::size_t(k)] - 1)));
+    }
+    return id;
+  };
+  const std::size_t cells = g.cells[0] * g.cells[1] * g.cells[2];
+  g.start.assign(cells + 1, 0);
+  for (const std::size_t i : neighbours_) ++g.start[cell_of(p.position[i]) + 1];
+  for (std::size_t c = 0; c < cells; ++c) g.start[c + 1] += g.start[c];
+  g.entry.resize(neighbours_.size());
+  g.fill.assign(g.start.begin(), g.start.end() - 1);
+  for (const std::size_t i : neighbours_) g.entry[g.fill[cell_of(p.position[i])]++] = i;
+  g.gridded = neighbours_.size();
 }
 
 void Feeder::save(ByteWriter& out) const {

@@ -17,6 +17,7 @@
 // changes the particles after it: runs of one scene at other settings feed
 // the same particles, and their products differ by what the settings do.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <random>
@@ -84,6 +85,10 @@ class Feeder {
   bool overlaps_particles(const State& state, const Candidate& c, const Vec3& x,
                           const Quat& q) const;
   void find_neighbours(const State& state);
+  // neighbours_ by cell of grid_, made by find_neighbours.
+  void sort_neighbours(const Particles& p, double reach);
+  template <class Fn>
+  void for_each_neighbour_near(const Vec3& x, Fn&& fn) const;
   double uniform();
   Quat orientation(const Candidate& c);
   Quat random_orientation();
@@ -96,6 +101,19 @@ class Feeder {
   std::optional<Candidate> pending_;     // drawn but not yet placed
   double max_bounding_radius_ = 0.0;     // of any particle this feed can draw
   std::vector<std::size_t> neighbours_;  // particles that may touch the region
+  // Those found by find_neighbours (the first `gridded` of neighbours_) by
+  // cell of a grid over the region, its cells at least as wide as a
+  // candidate's reach to a neighbour: a candidate is checked against those
+  // in the 27 cells around its own, not against all (thousands where the
+  // feed lays a monolayer). Those placed since are checked one by one.
+  struct Grid {
+    Vec3 min = Vec3::Zero();
+    double inv_cell = 0.0;
+    std::array<std::size_t, 3> cells{};
+    std::vector<std::size_t> start, entry;  // cell c's particles: entry[start[c] .. start[c + 1])
+    std::vector<std::size_t> fill;          // scratch
+    std::size_t gridded = 0;
+  } grid_;
   bool neighbours_valid_ = false;        // found this step
   bool owing_ = false;                   // the last step deferred a particle
   std::vector<geo::SurfaceHit> hits_;    // scratch for body queries
