@@ -193,7 +193,7 @@ class Runner {
   void start();
   void write_field_picture();
   void step_to_end();
-  bool caller_stops(std::uint64_t steps, bool last);
+  bool caller_stops(bool last);
   void checkpoint();
   void write_outputs();
   void publish(output::RunRecord& r);
@@ -311,7 +311,7 @@ void Runner::step_to_end() {
     progress.update(world_, sim_, seconds_since(start_));
     const bool collected = sim_.until_collected && feed_accounted_for(world_);
     const bool last = collected || world_.step_count() >= steps;
-    if (caller_stops(steps, last) && !last) {
+    if (caller_stops(last) && !last) {
       reason_ = "stopped by the caller";
       return;
     }
@@ -325,7 +325,7 @@ void Runner::step_to_end() {
 }
 
 // The caller's on_progress, when due: true when it asks the run to stop.
-bool Runner::caller_stops(std::uint64_t steps, bool last) {
+bool Runner::caller_stops(bool last) {
   if (!options_.on_progress) return false;
   const double wall = seconds_since(start_);
   if (wall - watched_at_ < options_.on_progress_every && !last) return false;
