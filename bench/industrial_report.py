@@ -103,16 +103,30 @@ print(f"Machine: {cpu_model()}, {cores} cores, {memory_gib():.0f} GiB; {platform
 print(load_line() + ".")
 print(f"Command: bash bench/industrial.sh {end} {short}\n")
 full = describe("full", f"Scene to {end} s on {cores} threads")
-one = describe("one", f"First {short} s on 1 thread")
-two = describe("two", f"First {short} s on 2 threads")
+def median_run(prefix):
+    """Of PREFIX_1..3, the run whose step time is the median."""
+    names = sorted((f"{prefix}_{k}" for k in (1, 2, 3)), key=lambda n: step_seconds(summary(n)))
+    return names[1]
+
+
+one_name, two_name = median_run("one"), median_run("two")
+one = describe(one_name, f"First {short} s on 1 thread (the median of three runs)")
+two = describe(two_name, f"First {short} s on 2 threads (the median of three runs)")
 print("## Speed-up, 1 -> 2 threads\n")
-print(f"over the first {short} s: whole step {step_seconds(one) / step_seconds(two):.2f}, solve "
+print(f"over the first {short} s, the medians of three runs each: whole step "
+      f"{step_seconds(one) / step_seconds(two):.2f}, solve "
       f"{one['wall_time_s']['stages']['solve'] / two['wall_time_s']['stages']['solve']:.2f}, run loop "
-      f"{one['wall_time_s']['total'] / two['wall_time_s']['total']:.2f}\n")
+      f"{one['wall_time_s']['total'] / two['wall_time_s']['total']:.2f}")
+for k in (1, 2, 3):
+    a, b = summary(f"one_{k}"), summary(f"two_{k}")
+    print(f"- run {k}: step {step_seconds(a):.2f} s on 1 thread, {step_seconds(b):.2f} s on 2 "
+          f"({step_seconds(a) / step_seconds(b):.2f}); solve {a['wall_time_s']['stages']['solve']:.2f} "
+          f"and {b['wall_time_s']['stages']['solve']:.2f} s")
+print()
 print("## Memory\n")
 empty = peak_rss_bytes("empty")
 runs = [(s["solver"]["particles_max"], s["solver"]["contacts_max"], peak_rss_bytes(n))
-        for s, n in ((two, "two"), (full, "full"))]
+        for s, n in ((two, two_name), (full, "full"))]
 print(f"peak resident set of the scene's process with no particles (one step): {empty / 2**20:.0f} MiB")
 print(f"the full run: {(runs[1][2] - empty) / runs[1][0]:.0f} B per particle above it, its contacts included "
       f"({runs[1][0]} particles, {runs[1][1]} contacts)")
