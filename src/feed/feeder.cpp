@@ -214,10 +214,8 @@ void Feeder::for_each_neighbour_near(const Vec3& x, Fn&& fn) const {
   const Grid& g = grid_;
   std::array<std::size_t, 3> lo, hi;
   for (int k = 0; k < 3; ++k) {
-    const double at = std::floor((x[k] - g.min[k]) * g.inv_cell);
-    const double last = double(g.cells[k] - 1);
-    lo[k] = std::size_t(std::clamp(at - 1.0, 0.0, last));
-    hi[k] = std::size_t(std::clamp(at + 1.0, 0.0, last));
+    lo[std::size_t(k)] = g.coord(x, k, -1.0);
+    hi[std::size_t(k)] = g.coord(x, k, 1.0);
   }
   for (std::size_t cx = lo[0]; cx <= hi[0]; ++cx)
     for (std::size_t cy = lo[1]; cy <= hi[1]; ++cy)
@@ -265,13 +263,7 @@ void Feeder::sort_neighbours(const Particles& p, double reach) {
   g.inv_cell = 1.0 / cell;
   for (int k = 0; k < 3; ++k) g.cells[std::size_t(k)] = std::size_t(count(k));
   auto cell_of = [&](const Vec3& x) {
-    std::size_t id = 0;
-    for (int k = 0; k < 3; ++k) {
-      const double at = std::floor((x[k] - g.min[k]) * g.inv_cell);
-      id = id * g.cells[std::size_t(k)] +
-           std::size_t(std::clamp(at, 0.0, double(g.cells[std::size_t(k)] - 1)));
-    }
-    return id;
+    return (g.coord(x, 0) * g.cells[1] + g.coord(x, 1)) * g.cells[2] + g.coord(x, 2);
   };
   const std::size_t cells = g.cells[0] * g.cells[1] * g.cells[2];
   g.start.assign(cells + 1, 0);
@@ -281,6 +273,11 @@ void Feeder::sort_neighbours(const Particles& p, double reach) {
   g.fill.assign(g.start.begin(), g.start.end() - 1);
   for (const std::size_t i : neighbours_) g.entry[g.fill[cell_of(p.position[i])]++] = i;
   g.gridded = neighbours_.size();
+}
+
+std::size_t Feeder::Grid::coord(const Vec3& x, int k, double shift) const {
+  const double at = std::floor((x[k] - min[k]) * inv_cell) + shift;
+  return std::size_t(std::clamp(at, 0.0, double(cells[std::size_t(k)] - 1)));
 }
 
 void Feeder::save(ByteWriter& out) const {

@@ -113,6 +113,8 @@ class Feeder {
     std::vector<std::size_t> start, entry;  // cell c's particles: entry[start[c] .. start[c + 1])
     std::vector<std::size_t> fill;          // scratch
     std::size_t gridded = 0;
+    // x's cell along axis k, or `shift` cells past it, clamped to the grid.
+    std::size_t coord(const Vec3& x, int k, double shift = 0.0) const;
   } grid_;
   bool neighbours_valid_ = false;        // found this step
   bool owing_ = false;                   // the last step deferred a particle
