@@ -563,7 +563,6 @@ Share short_share(const std::vector<double>& x, double gap) {
 // errors), and the 160 g/s case pools seeds 1-3 (about 170 particles). Asserted: the
 // short share rises by more than two standard errors and the range by more
 // than 20 mm; nearly all the copper lands (at least 90 %), beyond the FR-4.
-// About 110 s of one core's time.
 TEST(SeparatorScene, CopperLandingWidensWithFeedRate) {
   constexpr double kGap = 0.020;
   struct Rate {
