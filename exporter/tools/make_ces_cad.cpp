@@ -10,6 +10,7 @@
 //
 //   cmake --build build --target make_ces_cad && build/exporter/make_ces_cad
 //   meshes/ces/ces_machine.step
+#include <APIHeaderSection_MakeHeader.hxx>
 #include <BRepPrimAPI_MakeBox.hxx>
 #include <BRepPrimAPI_MakeCylinder.hxx>
 #include <Interface_Static.hxx>
@@ -17,6 +18,7 @@
 #include <Message_Messenger.hxx>
 #include <Message_PrinterOStream.hxx>
 #include <STEPCAFControl_Writer.hxx>
+#include <TCollection_HAsciiString.hxx>
 #include <TDataStd_Name.hxx>
 #include <TDocStd_Document.hxx>
 #include <XCAFApp_Application.hxx>
@@ -99,7 +101,15 @@ int main(int argc, char** argv) {
   Interface_Static::SetCVal("xstep.cascade.unit", "MM");  // drawn in mm, written in mm
   Interface_Static::SetCVal("write.step.unit", "MM");
   STEPCAFControl_Writer writer;
-  if (!writer.Transfer(doc, STEPControl_AsIs) || writer.Write(argv[1]) != IFSelect_RetDone) {
+  if (!writer.Transfer(doc, STEPControl_AsIs)) {
+    std::cerr << "cannot transfer the machine to STEP\n";
+    return 1;
+  }
+  // A fixed time stamp: the file is committed, and drawing it again with
+  // nothing changed leaves it byte-identical.
+  APIHeaderSection_MakeHeader header(writer.ChangeWriter().Model());
+  header.SetTimeStamp(new TCollection_HAsciiString("1970-01-01T00:00:00"));
+  if (writer.Write(argv[1]) != IFSelect_RetDone) {
     std::cerr << "cannot write " << argv[1] << "\n";
     return 1;
   }
