@@ -218,13 +218,16 @@ TEST(Brush, TouchRemovesInsulatorCharge) {
 //  3 charged FR-4 beyond the drum's width (z = 0.2 m): no force;
 //  4 copper and 5 mixed at 60° but 0.1 mm off the drum, charged q: off the
 //    drum, copper feels q E and the mixed particle (1 − w)(q E − F_im n)
-//    with the image force of its charge r + 0.1 mm from the drum (the image
-//    force acts at the distance of the closest listed drum contact, within
-//    the collision envelope; the induced charge only while touching).
+//    with the image force of its charge r + 0.1 mm from the drum (the induced
+//    charge only while touching);
+//  6 FR-4 charged q 3 mm off the drum, far outside the collision envelope:
+//    q E − F_im(r + 3 mm) n (the image force acts at the distance of the
+//    nearest drum surface, listed contact or not);
+//  7 FR-4 charged q more than a drum radius off the drum: q E alone.
 // After one step particles 0 and 2 leave the drum at 1 m/s; in the next
 // step copper feels Q_c E and the mixed one (w Q_c + (1 − w) q) E, Q_c
 // being the charge from step 1 (frozen), E at the new position, minus
-// (1 − w) F_im at its new gap while its drum contact is still listed.
+// (1 − w) F_im at its new gap.
 TEST(Forces, ActInTheStepTheyAreComputedAndChargesFreeze) {
   const double w_metal = 0.4, r = 0.5e-3, q = -1e-11;
   const std::vector<MaterialSpec> mats = {
@@ -246,6 +249,10 @@ TEST(Forces, ActInTheStepTheyAreComputedAndChargesFreeze) {
   w.add_particle(kSphere, r, 2, Vec3(0.0, 0.3, 0.2));
   w.add_particle(kSphere, r, 1, off - 0.02 * Vec3::UnitZ());
   w.add_particle(kSphere, r, 3, off + 0.02 * Vec3::UnitZ());
+  const Vec3 hop = on_drum(kDrumRadius + r + 3e-3, theta) + 0.04 * Vec3::UnitZ();
+  const Vec3 far = on_drum(2.0 * kDrumRadius + r + 1e-3, theta) - 0.04 * Vec3::UnitZ();
+  w.add_particle(kSphere, r, 2, hop);
+  w.add_particle(kSphere, r, 2, far);
   Particles& p = w.particles();
   for (std::size_t i = 1; i < p.size(); ++i) p.charge[i] = q;
   w.set_electrostatics(electrostatics(reference_field(), mats));
@@ -276,6 +283,9 @@ TEST(Forces, ActInTheStepTheyAreComputedAndChargesFreeze) {
   ASSERT_NEAR(listed_gap(5), 1e-4, 1e-12);
   expect_force(5, (1.0 - w_metal) * (q * field_at(field, probe.position[5]) -
                                      image_pull(q, r + 1e-4) * radial(probe.position[5])));
+  ASSERT_EQ(listed_gap(6), -1.0);
+  expect_force(6, q * field_at(field, hop) - image_pull(q, r + 3e-3) * n);
+  expect_force(7, q * field_at(field, far));
 
   const double frozen = p.charge[0];
   w.step(&probe);
@@ -283,9 +293,8 @@ TEST(Forces, ActInTheStepTheyAreComputedAndChargesFreeze) {
     ASSERT_GT(probe.position[i].head<2>().norm() - kDrumRadius - r, 5e-4) << "still on the drum";
   EXPECT_EQ(p.charge[0], frozen);
   expect_force(0, qc * field_at(field, probe.position[0]));
-  const double gap2 = listed_gap(2);
-  const Vec3 image2 =
-      gap2 >= 0.0 ? Vec3(image_pull(q, r + gap2) * radial(probe.position[2])) : Vec3::Zero();
+  const double gap2 = probe.position[2].head<2>().norm() - kDrumRadius - r;
+  const Vec3 image2 = image_pull(q, r + gap2) * radial(probe.position[2]);
   expect_force(2, (w_metal * qc + (1.0 - w_metal) * q) * field_at(field, probe.position[2]) -
                       (1.0 - w_metal) * image2);
 }

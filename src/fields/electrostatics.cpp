@@ -37,7 +37,7 @@ void require(bool ok, const std::string& what) {
 // spheres' radius), and a sliding conductor is still in contact with the
 // grounded drum. Twice that is allowed too; v_t is the slip at the contact
 // point at the start of the step. (The image force does not need a touch:
-// it acts at the distance of the closest listed drum contact.)
+// it acts at the distance of the nearest drum surface, nearest_drum.)
 double touch_tolerance(const Contacts& c, std::size_t k, const Bodies& bodies, std::size_t body,
                        const Particles& p, std::size_t i, double h) {
   const Vec3& w = bodies.angular_velocity[body];
@@ -227,12 +227,13 @@ struct Site {
   bool active;              // |z| <= half-width
   const Vec3* drum_normal;  // out of the drum at the touching contact, or null
   const Vec3* near_normal;  // out of the drum at the closest listed contact, or null
-  double near_gap;          // its gap (>= 0)
+  DrumGap image;            // the drum surface nearest the particle, for the image pull
   bool brush;               // touches the brush
   double radius;            // sphere of the particle's volume
   FlatFlake flake;          // a flat shape's face and thickness; face area 0 for a compact one
   bool flat_near;           // lying flat over the closest drum contact
   bool flat_touch;          // lying flat on the touching drum contact
+  bool flat_image;          // lying flat over the nearest drum surface
 };
 
 ElectrostaticsStage::ElectrostaticsStage(ElectrostaticsSpec spec, const Model& model)
@@ -248,16 +249,15 @@ void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
   find_touches(contacts, bodies, p, h);
   const auto n = std::ptrdiff_t(p.size());
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < n; ++s) update(p, std::size_t(s), contacts, h);
+  for (std::ptrdiff_t s = 0; s < n; ++s) update(model, p, std::size_t(s), contacts, h);
 }
 
 // This step's touches, from the contact list (body contacts name the body
 // first and point their normal out of it). A cluster touching the drum
 // with several spheres uses its closest contact. Also the closest drum
 // contact in the list whether touching or not (within the collision
-// envelope: a quarter of the sphere radius plus one step's travel), for
-// the image force, which does not stop when a particle hops off by a
-// fraction of a millimetre. In parallel: a particle's contacts with one
+// envelope: a quarter of the sphere radius plus one step's travel): a
+// flake lying flat over it charges as a flat flake. In parallel: a particle's contacts with one
 // body follow each other in the list (Collider::narrowphase), so each
 // particle's entries are written by the one chunk that holds that run.
 void ElectrostaticsStage::find_touches(const Contacts& c, const Bodies& bodies, const Particles& p, double h) {
@@ -317,7 +317,36 @@ Vec3 ElectrostaticsStage::field_at(const Vec3& x, double& current_density) const
   return e;
 }
 
-Site ElectrostaticsStage::site(const Particles& p, std::size_t i, const Contacts& c) const {
+// The drum's surface nearest particle i: the gap of its sphere closest to
+// the drum's cylinder, and the outward normal there. The image pull takes
+// it from the geometry, not from the contact list: a drum contact is
+// listed only within the collision envelope (a quarter of a sphere's
+// radius plus a step's travel), which shrinks with the step, while the
+// pull reaches a flake that hops a millimetre off the drum at several
+// times its weight. Within one drum radius of the surface: farther, a
+// plane's image no longer stands for the cylinder, and the pull is a
+// millionth of what it is on the drum.
+DrumGap ElectrostaticsStage::nearest_drum(const ParticleShape& s, const Particles& p,
+                                          std::size_t i) const {
+  const double R = spec_.drum.radius;
+  const Vec3& x = p.position[i];
+  DrumGap out;
+  if (std::hypot(x.x(), x.y()) - s.bounding_radius * p.scale[i] > 2.0 * R) return out;
+  const Mat3 to_world = p.orientation[i].toRotationMatrix() * p.scale[i];
+  for (std::size_t k = 0; k < s.centers.size(); ++k) {
+    const Vec3 c = x + to_world * s.centers[k];
+    const double axis = std::hypot(c.x(), c.y());
+    const double gap = axis - R - s.radii[k] * p.scale[i];
+    if (gap >= out.gap || axis == 0.0) continue;
+    out.gap = gap;
+    out.normal = Vec3(c.x() / axis, c.y() / axis, 0.0);
+  }
+  if (out.gap > R) out = DrumGap{};
+  return out;
+}
+
+Site ElectrostaticsStage::site(const Model& model, const Particles& p, std::size_t i,
+                              const Contacts& c) const {
   const Vec3& x = p.position[i];
   const bool active = std::abs(x.z()) <= spec_.drum.half_width;
   const std::int32_t k = drum_contact_[i], kn = near_contact_[i];
@@ -328,25 +357,28 @@ Site ElectrostaticsStage::site(const Particles& p, std::size_t i, const Contacts
   const double area = p.scale[i] * p.scale[i] * shape.face_area;
   double j = 0.0;
   const Vec3 e = active ? field_at(x, j) : Vec3::Zero();
+  const DrumGap image = nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i);
   return {x,
           e,
           j,
           active,
           touch,
           near,
-          kn >= 0 ? std::max(0.0, c.gap[std::size_t(kn)]) : 0.0,
+          image,
           brush_touch_[i] != 0,
           equal_volume_radius(volume),
           {area, area > 0.0 ? volume / area : 0.0},
           lies_flat(shape, p.orientation[i], near),
-          lies_flat(shape, p.orientation[i], touch)};
+          lies_flat(shape, p.orientation[i], touch),
+          image.found() && lies_flat(shape, p.orientation[i], &image.normal)};
 }
 
 // One particle: both parts' charges for this step, then the w-weighted
 // sum of their forces (docs/physics.md §5).
-void ElectrostaticsStage::update(Particles& p, std::size_t i, const Contacts& c, double h) const {
+void ElectrostaticsStage::update(const Model& model, Particles& p, std::size_t i,
+                                 const Contacts& c, double h) const {
   const ElectricalMaterial& m = material(p, i);
-  const Site at = site(p, i, c);
+  const Site at = site(model, p, i, c);
   const double w = m.metal_fraction;
   Vec3 force = Vec3::Zero();
   if (w > 0.0) force += w * metal_part(w < 1.0 ? p.metal_charge[i] : p.charge[i], at);
@@ -402,16 +434,17 @@ Vec3 ElectrostaticsStage::insulating_part(double& charge, const ElectricalMateri
   }
   if (at.brush) charge = 0.0;
   Vec3 force = charge * at.field;
-  if (at.near_normal) {
+  if (at.image.found()) {
     // At the gap of the closest sphere: a flake lying flat by the
     // bridged face law, anything else by the sphere law with its charge
     // r + gap from the drum.
     const double eps_m = spec_.medium_relative_permittivity;
+    const double gap = std::max(0.0, at.image.gap);
     const double pull =
-        at.flat_near ? flat_image_force(charge, at.flake.face_area, eps_m, at.near_gap,
-                                        flake_image_factor(at.flake, eps))
-                     : image_force(charge, at.radius + at.near_gap, eps_m);
-    force -= pull * *at.near_normal;
+        at.flat_image ? flat_image_force(charge, at.flake.face_area, eps_m, gap,
+                                         flake_image_factor(at.flake, eps))
+                      : image_force(charge, at.radius + gap, eps_m);
+    force -= pull * at.image.normal;
   }
   return force;
 }

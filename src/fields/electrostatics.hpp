@@ -153,6 +153,14 @@ struct ElectrostaticsSpec {
 // Site of one particle for its charges this step (electrostatics.cpp).
 struct Site;
 
+// The drum surface nearest a particle: the gap of its closest sphere and
+// the outward normal there; none found beyond one drum radius.
+struct DrumGap {
+  Vec3 normal = Vec3::Zero();
+  double gap = std::numeric_limits<double>::infinity();
+  bool found() const { return gap < std::numeric_limits<double>::infinity(); }
+};
+
 // The stage: reads this step's contacts, the bodies' motion and the
 // particles' position, orientation, velocity, shape, scale and material;
 // writes their charge, metal_charge and force.
@@ -169,8 +177,10 @@ class ElectrostaticsStage {
   void touch(const Contacts& c, std::size_t k, bool on_drum, const Bodies& bodies,
              const Particles& p, double h);
   const ElectricalMaterial& material(const Particles& p, std::size_t i) const;
-  Site site(const Particles& p, std::size_t i, const Contacts& c) const;
-  void update(Particles& p, std::size_t i, const Contacts& c, double h) const;
+  DrumGap nearest_drum(const ParticleShape& s, const Particles& p, std::size_t i) const;
+  Site site(const Model& model, const Particles& p, std::size_t i, const Contacts& c) const;
+  void update(const Model& model, Particles& p, std::size_t i, const Contacts& c,
+              double h) const;
   Vec3 field_at(const Vec3& x, double& current_density) const;
   double saturation_charge(const Site& at, double eps_r, double field) const;
   Vec3 metal_part(double& charge, const Site& at) const;
