@@ -12,8 +12,8 @@ def summary(folder):
     tool here, naming it: its products would be a part of the feed's."""
     path = os.path.join(folder, "summary.json")
     if not os.path.exists(path):
-        sys.exit(f"{folder}: the run wrote no summary.json; it failed before it started "
-                 "(run it again without --quiet to see why)")
+        sys.exit(f"{folder}: no summary.json; the run has not finished, or failed before it "
+                 "started (run it again without --quiet to see why)")
     s = json.load(open(path))
     if not s.get("complete"):
         sys.exit(f"{folder}: the run did not complete ({s.get('reason', 'no reason given')})")
