@@ -257,9 +257,10 @@ void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
 // with several spheres uses its closest contact. Also the closest drum
 // contact in the list whether touching or not (within the collision
 // envelope: a quarter of the sphere radius plus one step's travel): a
-// flake lying flat over it charges as a flat flake. In parallel: a particle's contacts with one
-// body follow each other in the list (Collider::narrowphase), so each
-// particle's entries are written by the one chunk that holds that run.
+// flake lying flat over it charges as a flat flake. In parallel: a
+// particle's contacts with one body follow each other in the list
+// (Collider::narrowphase), so each particle's entries are written by the
+// one chunk that holds that run.
 void ElectrostaticsStage::find_touches(const Contacts& c, const Bodies& bodies, const Particles& p, double h) {
   const std::size_t np = p.size();
   drum_contact_.assign(np, -1);
