@@ -358,7 +358,10 @@ Site ElectrostaticsStage::site(const Model& model, const Particles& p, std::size
   const double area = p.scale[i] * p.scale[i] * shape.face_area;
   double j = 0.0;
   const Vec3 e = active ? field_at(x, j) : Vec3::Zero();
-  const DrumGap image = nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i);
+  // Only an insulating part on the drum's width feels the image pull.
+  const bool pulled = active && material(p, i).metal_fraction < 1.0;
+  const DrumGap image =
+      pulled ? nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i) : DrumGap{};
   return {x,
           e,
           j,
