@@ -1,6 +1,5 @@
 """Writes docs/accuracy_defaults.md from the runs of tools/accuracy.sh.
 Usage: python3 tools/accuracy_report.py OUT DOC REFERENCE_SETTINGS SEED..."""
-import csv
 import random
 import sys
 
@@ -10,10 +9,12 @@ from runs import products
 out, doc, reference, *seeds = sys.argv[1:]
 names = [f"{kind}_{seed}" for seed in seeds for kind in ("defaults", "reference")]
 
+
 def difference(a, b, weights=None):
     pa, pb = products(a, weights), products(b, weights)
     return {k: (pa.get(k, (0, 0))[0] - pb.get(k, (0, 0))[0],
                 pa.get(k, (0, 0))[1] - pb.get(k, (0, 0))[1]) for k in set(pa) | set(pb)}
+
 
 def paired_errors(a, b, resamples=1000):
     """Standard error of the difference by the bootstrap over particles,
@@ -36,11 +37,6 @@ def paired_errors(a, b, resamples=1000):
     return {k: tuple(max(s[i + 1] / resamples - (s[i] / resamples) ** 2, 0.0) ** 0.5
                      for i in (0, 2)) for k, s in sums.items()}
 
-def landing(run, material):
-    """Mass per bin of the bins collector and the bins' width."""
-    rows = [r for r in csv.DictReader(open(f"{out}/{run}/bins.csv"))
-            if r["collector"] == "bins" and r["material"] == material]
-    return [float(r["mass_kg"]) for r in rows], float(rows[0]["to_m"]) - float(rows[0]["from_m"])
 
 def w1(a, b, width):
     """Wasserstein-1 distance of two mass distributions on the same bins,
@@ -111,8 +107,8 @@ lines += ["", f"Largest difference: grade {100 * largest(d, 0):.2f} points, reco
 for material in ("copper", "fr4"):
     a = b = None
     for s in seeds:
-        ma, width = landing(f"defaults_{s}", material)
-        mb, _ = landing(f"reference_{s}", material)
+        ma, width = runs.bins(f"{out}/defaults_{s}", material)
+        mb, _ = runs.bins(f"{out}/reference_{s}", material)
         a = ma if a is None else [x + y for x, y in zip(a, ma)]
         b = mb if b is None else [x + y for x, y in zip(b, mb)]
     lines.append(f"| {material} | {1e3 * w1(a, b, width):.2f} |")

@@ -2,11 +2,13 @@
 each particle's fate, the products made of them, the landings at the bins.
 Used by tools/accuracy.sh and tools/step_convergence.sh."""
 import csv
+import functools
 import json
 import os
 import sys
 
 
+@functools.cache
 def summary(folder):
     """The run's summary.json. A run that failed or was cut short stops the
     tool here, naming it: its products would be a part of the feed's."""
@@ -26,10 +28,11 @@ def load_average(folder):
     return open(f"{folder}.load").read().split()
 
 
+@functools.cache
 def fates(folder):
     """Per particle id: (material, mass in kg, product), product None for a
     particle lost from the domain. Checked against the run's own
-    products.csv."""
+    products.csv. Read once per folder; callers do not change it."""
     summary(folder)
     out = {}
     for r in csv.DictReader(open(os.path.join(folder, "crossings.csv"))):
@@ -75,6 +78,14 @@ def landings(folder, material):
     particles, sorted."""
     return sorted(float(r["along_m"]) for r in csv.DictReader(open(os.path.join(folder, "crossings.csv")))
                   if r["collector"] == "bins" and r["material"] == material)
+
+
+def bins(folder, material):
+    """One material's mass per bin of the bins collector (kg), and the
+    bins' width (m)."""
+    rows = [r for r in csv.DictReader(open(os.path.join(folder, "bins.csv")))
+            if r["collector"] == "bins" and r["material"] == material]
+    return [float(r["mass_kg"]) for r in rows], float(rows[0]["to_m"]) - float(rows[0]["from_m"])
 
 
 def machine():
