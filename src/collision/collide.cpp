@@ -227,9 +227,9 @@ struct PairMotion {
 // a row also takes that much of the pair's travel across it (each side's
 // slack). And the gaps themselves are affine only between flat surfaces:
 // between two flakes' spheres a member can be nearer than the corners
-// around it. A member that could so end overlapping by more than
-// penetration_tolerance with every kept row met (two flakes spinning
-// against each other in the brush nip) is kept too; a flat face on a wall
+// around it. A member that could so end overlapping by more than the
+// overlap aim (SolverSettings::overlap_aim) with every kept row met (two
+// flakes spinning against each other in the brush nip) is kept too; a flat face on a wall
 // keeps its corners alone.
 void keep_unheld(const std::vector<Candidate>& c, const Vec3& n_g, const Hull& hull,
                  const PairMotion& motion, double tolerance, std::vector<std::uint8_t>& keep) {
@@ -512,7 +512,7 @@ void Collider::narrowphase(const Model& model, const Particles& p, const Bodies&
 
 void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& out) {
   const auto& mat = model.materials;
-  const double h = model.step, tolerance = model.solver.penetration_tolerance;
+  const double h = model.step, tolerance = model.solver.overlap_aim();
   run_chunked(pairs_.size(), chunks_, out, used_, [&](std::size_t begin, std::size_t end, Contacts& part) {
     static thread_local std::vector<Candidate> candidates;  // kept across steps
     for (std::size_t k = begin; k < end; ++k) {
@@ -564,7 +564,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   const Mat3 to_world = pose.orientation.toRotationMatrix();
   auto local = [&](const Vec3& x) -> Vec3 { return to_local * (x - pose.position); };
   const int solver_index = int(p.size()) + body;
-  const double tolerance = model.solver.penetration_tolerance;
+  const double tolerance = model.solver.overlap_aim();
   const auto& mat = model.materials;
   run_chunked(p.size(), chunks_, out, used_, [&](std::size_t begin, std::size_t end, Contacts& part) {
     // Per thread and kept across steps: no allocation per chunk.

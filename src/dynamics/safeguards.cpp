@@ -12,8 +12,8 @@ namespace {
 // The guards act on rows violated by more than this many solver
 // tolerances (m/s), but never less than kGuardFloor (below it rounding, not
 // the solve, decides a row's sign: at tolerance 0 the guard's sweeps would
-// chase rounding), nor by less than leaves the contact within the scene's
-// penetration_tolerance (Allowance), in at most this many sweeps (a
+// chase rounding), nor by less than leaves the contact within the overlap
+// the solve aims at (Allowance), in at most this many sweeps (a
 // particle in a corner touches two or three walls); the sliding release on
 // rows lifting by more than the tolerances.
 constexpr double kGuardFactor = 10.0, kGuardFloor = 1e-12;
@@ -73,7 +73,7 @@ double turn_limit(const ParticleShape& s) {
 // (a flake on the drum under another).
 struct Allowance {
   double velocity = 0.0;  // m/s
-  double overlap = 0.0;   // of the smaller radius, as penetration_tolerance
+  double overlap = 0.0;   // of the smaller radius, as SolverSettings::overlap_aim
   double of(const CcpProblem& p, std::size_t k) const {
     return std::max(velocity, p.overlap_slack(k, overlap));
   }
@@ -415,7 +415,7 @@ void apply_safeguards(const Model& model, const Particles& particles, const Cont
                       const CcpProblem& problem, SafeguardScratch& scratch, Span gamma,
                       SolverBodies& bodies, StepStats& stats) {
   const Allowance allowed{std::max(kGuardFactor * model.solver.tolerance, kGuardFloor),
-                          model.solver.penetration_tolerance};
+                          model.solver.overlap_aim()};
   Guard c{model, particles, contacts, problem, scratch, gamma, bodies, allowed};
   make_safe(c, stats);
   release_sliding(c, stats);

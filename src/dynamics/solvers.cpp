@@ -46,12 +46,13 @@ double dot(ConstSpan a, ConstSpan b) {
 }
 
 // The stopping rule of every solver: the residual at or under the
-// tolerance, and no contact left overlapping by more than the penetration
-// tolerance at the end of the step, nor, where it overlaps more already,
+// tolerance, and no contact left overlapping by more than the overlap aim
+// (SolverSettings::overlap_aim) at the end of the step, nor, where it
+// overlaps more already,
 // by more than now (CcpProblem::overlaps_within). g is the gradient at the
 // iterate.
 bool accurate(const CcpProblem& p, const SolverSettings& s, double rms, ConstSpan g, bool world) {
-  return rms <= s.tolerance && p.overlaps_within(g, world, s.penetration_tolerance);
+  return rms <= s.tolerance && p.overlaps_within(g, world, s.overlap_aim());
 }
 
 // The best iterate's record. Until a finite residual is met the stats say

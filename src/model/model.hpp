@@ -161,6 +161,15 @@ struct SolverSettings {
   // The overlap a solve may leave, relative to the smaller radius: with
   // the residual, what stops it before max_iterations.
   double penetration_tolerance = defaults::kPenetrationTolerance;
+  // What the solve, the guards and the manifold hold each listed contact's
+  // linearised overlap to: a safety factor under the tolerance, as a step
+  // size controller aims under its error bound. The overlap measured at
+  // the next step is more than the linear prediction by the second-order
+  // part of each clump's turn (dynamics/safeguards.cpp, limit_spin) and by
+  // contacts the manifold left out as out of reach; held to the tolerance
+  // itself, a run's worst overlap ends a hair over it.
+  double overlap_aim() const { return kOverlapSafety * penetration_tolerance; }
+  static constexpr double kOverlapSafety = 0.8;
   double pgs_relaxation = defaults::kSolverRelaxation;  // over-relaxation for projected Gauss-Seidel
   bool warm_start = defaults::kSolverWarmStart;
 };
