@@ -20,6 +20,14 @@ double smallest_radius(const ParticleShape& s) {
   return *std::min_element(s.radii.begin(), s.radii.end());
 }
 
+// The largest impulse one contact can pass in a step between sides of
+// reduced mass m_red closing at v_close: the normal one is at most
+// (1 + e) m_red v_close, and friction, inside its cone, adds at most mu
+// times that across the normal.
+double largest_blow(const SurfacePair& s, double m_red, double v_close) {
+  return (1.0 + s.restitution) * std::sqrt(1.0 + s.friction * s.friction) * m_red * v_close;
+}
+
 // A deterministic normal for coincident centres (degenerate spawns).
 Vec3 safe_direction(const Vec3& d, double len) {
   return len > 0.0 ? Vec3(d / len) : Vec3::UnitY();
@@ -214,8 +222,16 @@ Hull hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> m
 struct PairMotion {
   Vec3 xa, va, wa, xb, vb, wb;
   double h;
+  SpeedChange ca, cb;  // what each side's velocity can change by within the step
   double travel(const Vec3& p) const {
     return h * (vb + wb.cross(p - xb) - va - wa.cross(p - xa)).norm();
+  }
+  // The most the pair can close at p this step: the start's travel plus
+  // each side's change of velocity there, over the step.
+  double reach(const Vec3& p) const {
+    const double a = ca.linear + ca.angular * (p - xa).norm();
+    const double b = cb.linear + cb.angular * (p - xb).norm();
+    return travel(p) + h * (a + b);
   }
 };
 
@@ -229,8 +245,9 @@ struct PairMotion {
 // between two flakes' spheres a member can be nearer than the corners
 // around it. A member that could so end overlapping by more than the
 // overlap aim (SolverSettings::overlap_aim) with every kept row met (two
-// flakes spinning against each other in the brush nip) is kept too; a flat face on a wall
-// keeps its corners alone.
+// flakes spinning against each other in the brush nip) is kept too, unless its gap is
+// more than the pair can close there this step (motion.reach): then no
+// row is needed to hold it. A flat face on a wall keeps its corners alone.
 void keep_unheld(const std::vector<Candidate>& c, const Vec3& n_g, const Hull& hull,
                  const PairMotion& motion, double tolerance, std::vector<std::uint8_t>& keep) {
   // A group the hull and the deepest hold whole (a 7-sphere flake: its
@@ -262,7 +279,8 @@ void keep_unheld(const std::vector<Candidate>& c, const Vec3& n_g, const Hull& h
     const Planar& p = hull.members[i];
     if (keep[p.k]) continue;
     const double allowed = c[p.k].gap - slack(p.k) + tolerance * c[p.k].radius;
-    if (allowed < most && allowed < fan.interpolate(p, closing, most)) keep[p.k] = 1;
+    if (allowed < most && allowed < fan.interpolate(p, closing, most))
+      keep[p.k] = !(c[p.k].gap > motion.reach(c[p.k].point));
   }
 }
 
@@ -390,7 +408,8 @@ void Collider::broadphase(const Model& model, const Particles& p, const Bodies& 
   centers_.resize(n);
   reach_.resize(n);
   envelope_.resize(n);
-  kick_.assign(n, 0.0);
+  blow_.assign(n, 0.0);
+  neighbour_blow_.assign(n, 0.0);
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
   for (std::ptrdiff_t si = 0; si < std::ptrdiff_t(n); ++si) {
     const auto i = std::size_t(si);
@@ -413,22 +432,28 @@ void Collider::broadphase(const Model& model, const Particles& p, const Bodies& 
   }
   for (std::size_t b = 0; b < model.bodies.size(); ++b) struck_by_body(model, p, bodies, int(b));
   grid_.find_pairs(centers_, reach_, pairs_);
+  struck_by_neighbours(model, p);
 }
 
-// A moving body can strike a particle this step and send it into a
-// neighbour it had no contact with: a falling plate drives a grain of a
-// pile into the one below it. A blow changes the particle's velocity by at
-// most (1 + e) times its approach speed along the surface's normal, and
-// friction by mu times that across it: its envelope grows by that change
-// times the step. A surface that slides past without closing in (a drum
-// under the particles riding it) adds nothing, nor does a body at rest,
-// which sends nothing back faster than it came. (The spin an off-centre
-// blow adds is not bounded here.)
+// A body can strike a particle this step. For the manifold's cull
+// (speed_changes), every body's blow is bounded by largest_blow(m_i,
+// closing speed), a body's mass being no less than the particle's: any
+// point of the particle closes on the surface at most at the centre's
+// approach along the surface's normals, plus both spins across the
+// particle, plus what gravity and the forces add within the step.
+// A moving body's blow also widens the particle's envelope against its
+// neighbours: a falling plate drives a grain of a pile into the one below
+// it. The blow changes the particle's velocity by at most (1 + e) times
+// its approach speed along the surface's normal, and friction by mu times
+// that across it: the envelope grows by that change times the step. A
+// surface that slides past without closing in (a drum under the particles
+// riding it) adds nothing, nor does a body at rest, which sends nothing
+// back faster than it came.
 void Collider::struck_by_body(const Model& model, const Particles& p, const Bodies& bodies,
                               int body) {
   const Vec3& v_body = bodies.velocity[std::size_t(body)];
   const Vec3& w_body = bodies.angular_velocity[std::size_t(body)];
-  if (v_body.squaredNorm() == 0.0 && w_body.squaredNorm() == 0.0) return;
+  const bool moving = v_body.squaredNorm() > 0.0 || w_body.squaredNorm() > 0.0;
   const RigidBody& rb = model.bodies[std::size_t(body)];
   const Pose& pose = bodies.pose[std::size_t(body)];
   const geo::Aabb bounds = geo::local_bounds(rb.shape);
@@ -446,15 +471,71 @@ void Collider::struck_by_body(const Model& model, const Particles& p, const Bodi
     if (!bounds.inflated(reach).overlaps({local, local})) continue;
     hits.clear();
     geo::query(rb.shape, local, reach, hits);
+    if (hits.empty()) continue;
     const Vec3 v_rel = p.velocity[i] - v_body - w_body.cross(p.position[i] - pose.position);
     double approach = 0.0;
     for (const geo::SurfaceHit& hit : hits)
       approach = std::max(approach, -v_rel.dot(to_world * hit.normal));
-    if (approach == 0.0) continue;
+    const double bounding = model.shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i];
+    const double closing = approach + (p.angular_velocity[i].norm() + w_body.norm()) * bounding +
+                           h * (model.gravity + p.inv_mass[i] * p.force[i]).norm();
     const SurfacePair surface = model.materials.pair(rb.material, p.material[i]);
+    blow_[i] += largest_blow(surface, p.mass[i], closing);  // one from each body
+    if (!moving || approach == 0.0) continue;
     const double kick = (1.0 + surface.restitution) * (1.0 + surface.friction) * approach * h;
     envelope_[i] += kick;
     reach_[i] += kick;
+  }
+}
+
+// For the manifold's cull (speed_changes): the largest blow a neighbour
+// can give each particle this step. Each pair whose envelopes meet can
+// pass at most largest_blow of their reduced mass and the speed at which
+// any two of their points can close: the centres' relative velocity, the
+// forces' change of it within the step and both spins across the
+// particles. A particle keeps the largest; a chain can pass on more,
+// which the bound leaves to the solve's overlap stop and the wall guard
+// (dynamics/safeguards.cpp). In parallel: a maximum is the same in any
+// order.
+void Collider::struck_by_neighbours(const Model& model, const Particles& p) {
+  const double h = model.step;
+  auto bounding = [&](std::size_t i) {
+    return model.shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i];
+  };
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(pairs_.size()) > kParallelMin)
+  for (std::ptrdiff_t k = 0; k < std::ptrdiff_t(pairs_.size()); ++k) {
+    const auto i = std::size_t(pairs_[std::size_t(k)].first);
+    const auto j = std::size_t(pairs_[std::size_t(k)].second);
+    const Vec3 forces = h * (p.inv_mass[i] * p.force[i] - p.inv_mass[j] * p.force[j]);
+    const double closing = (p.velocity[i] - p.velocity[j]).norm() + forces.norm() +
+                           p.angular_velocity[i].norm() * bounding(i) +
+                           p.angular_velocity[j].norm() * bounding(j);
+    const double mi = p.mass[i], mj = p.mass[j];
+    const SurfacePair surface = model.materials.pair(p.material[i], p.material[j]);
+    const double blow = largest_blow(surface, mi * mj / (mi + mj), closing);
+    raise_to(neighbour_blow_[i], blow);
+    raise_to(neighbour_blow_[j], blow);
+  }
+}
+
+// What each particle's velocity can change by within the step: gravity and
+// the forces (as in broadphase), and the blows of the bodies and of a
+// neighbour, in its centre's velocity (blow / m) and in its spin (the blow
+// on the longest lever, the bounding radius, over the smallest moment of
+// inertia; the torques too), which moves a point d from the centre by
+// that times d.
+void Collider::speed_changes(const Model& model, const Particles& p) {
+  const double h = model.step;
+  const std::size_t n = p.size();
+  change_.resize(n);
+#pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
+  for (std::ptrdiff_t si = 0; si < std::ptrdiff_t(n); ++si) {
+    const auto i = std::size_t(si);
+    const double blow = blow_[i] + neighbour_blow_[i];
+    const double bounding = model.shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i];
+    const double linear = h * (model.gravity + p.inv_mass[i] * p.force[i]).norm();
+    const double angular = h * p.torque[i].norm() + blow * bounding;
+    change_[i] = {linear + blow * p.inv_mass[i], angular * p.inv_inertia[i].maxCoeff()};
   }
 }
 
@@ -480,6 +561,7 @@ void Collider::narrowphase(const Model& model, const Particles& p, const Bodies&
     for (std::size_t k = 0; k < shape.centers.size(); ++k)
       sphere_centre_[sphere_first_[i] + k] = p.position[i] + R * shape.centers[k];
   }
+  speed_changes(model, p);
   particle_pairs(model, p, out);
   // A particle can also be struck this step by a neighbour and leave faster
   // than it came: a light grain hit by a heavy one in a 10 m/s stream can
@@ -490,6 +572,7 @@ void Collider::narrowphase(const Model& model, const Particles& p, const Bodies&
   // pass on more; the wall guard, dynamics/safeguards.cpp, covers the
   // contacts found.)
   // In parallel: a maximum is the same in any order.
+  kick_.assign(n, 0.0);
   const auto particle_contacts = std::ptrdiff_t(used_);
 #pragma omp parallel for schedule(static) if (particle_contacts > kParallelMin)
   for (std::ptrdiff_t k = 0; k < particle_contacts; ++k) {
@@ -543,7 +626,8 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
         }
       }
       const PairMotion motion{p.position[ui], p.velocity[ui], p.angular_velocity[ui],
-                              p.position[uj], p.velocity[uj], p.angular_velocity[uj], h};
+                              p.position[uj], p.velocity[uj], p.angular_velocity[uj],
+                              h,              change_[ui],   change_[uj]};
       reduce_manifold(candidates, i, j, surfaces, motion, tolerance, part);
     }
   });
@@ -564,6 +648,11 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   const Mat3 to_world = pose.orientation.toRotationMatrix();
   auto local = [&](const Vec3& x) -> Vec3 { return to_local * (x - pose.position); };
   const int solver_index = int(p.size()) + body;
+  // Against a body the cull leaves nothing out as out of reach: the wall
+  // guard (dynamics/safeguards.cpp) finishes only the rows that are listed,
+  // and a grain in the brush nip is driven by a chain of blows no single
+  // bound covers.
+  const SpeedChange unbounded{std::numeric_limits<double>::infinity(), 0.0};
   const double tolerance = model.solver.overlap_aim();
   const auto& mat = model.materials;
   run_chunked(p.size(), chunks_, out, used_, [&](std::size_t begin, std::size_t end, Contacts& part) {
@@ -607,8 +696,9 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
           candidates.push_back({n, c - n * (r + 0.5 * gap), gap, r, key});
         }
       }
-      const PairMotion motion{pose.position,  v_body, w_body, p.position[i], p.velocity[i],
-                              p.angular_velocity[i], model.step};
+      const PairMotion motion{pose.position,         v_body,     w_body,    p.position[i],
+                              p.velocity[i],         p.angular_velocity[i], model.step,
+                              unbounded,             change_[i]};
       reduce_manifold(candidates, solver_index, int(i), surfaces, motion, tolerance, part);
     }
   });

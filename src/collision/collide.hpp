@@ -11,6 +11,13 @@
 
 namespace ces {
 
+// The most a particle's velocity can change within a step, besides what
+// the contacts being reduced give it: at a point d from its centre, by
+// linear + angular * d (m/s).
+struct SpeedChange {
+  double linear = 0.0, angular = 0.0;
+};
+
 class Collider {
  public:
   // Each particle's collision envelope for this step, and the pairs of
@@ -24,6 +31,8 @@ class Collider {
 
  private:
   void struck_by_body(const Model& model, const Particles& p, const Bodies& bodies, int body);
+  void struck_by_neighbours(const Model& model, const Particles& p);
+  void speed_changes(const Model& model, const Particles& p);
   void particle_pairs(const Model& model, const Particles& p, Contacts& out);
   void body_contacts(const Model& model, const Particles& p, const Bodies& bodies, int body,
                      Contacts& out);
@@ -33,6 +42,10 @@ class Collider {
   std::vector<Vec3> sphere_centre_;        // in the world, this step
   std::vector<double> reach_, envelope_;
   std::vector<double> kick_;  // what impacts with neighbours can add to the travel (m)
+  // For the manifold's cull (speed_changes): the largest impulses the
+  // bodies together and one neighbour can give a particle this step (N s).
+  std::vector<double> blow_, neighbour_blow_;
+  std::vector<SpeedChange> change_;
   std::vector<std::pair<std::int32_t, std::int32_t>> pairs_;
   std::vector<OwnLine<Contacts>> chunks_;
   std::size_t used_ = 0;  // contacts written to the output so far this step
