@@ -245,9 +245,10 @@ struct PairMotion {
 // between two flakes' spheres a member can be nearer than the corners
 // around it. A member that could so end overlapping by more than the
 // overlap aim (SolverSettings::overlap_aim) with every kept row met (two
-// flakes spinning against each other in the brush nip) is kept too, unless its gap is
-// more than the pair can close there this step (motion.reach): then no
-// row is needed to hold it. A flat face on a wall keeps its corners alone.
+// flakes spinning against each other in the brush nip) is kept too, unless
+// its gap is more than the pair can close there this step (motion.reach):
+// then no row is needed to hold it. A flat face on a wall keeps its
+// corners alone.
 void keep_unheld(const std::vector<Candidate>& c, const Vec3& n_g, const Hull& hull,
                  const PairMotion& motion, double tolerance, std::vector<std::uint8_t>& keep) {
   // A group the hull and the deepest hold whole (a 7-sphere flake: its
@@ -277,10 +278,9 @@ void keep_unheld(const std::vector<Candidate>& c, const Vec3& n_g, const Hull& h
   const Fan fan(hull);
   for (std::size_t i = 0; i < hull.count; ++i) {
     const Planar& p = hull.members[i];
-    if (keep[p.k]) continue;
+    if (keep[p.k] || c[p.k].gap > motion.reach(c[p.k].point)) continue;
     const double allowed = c[p.k].gap - slack(p.k) + tolerance * c[p.k].radius;
-    if (allowed < most && allowed < fan.interpolate(p, closing, most))
-      keep[p.k] = !(c[p.k].gap > motion.reach(c[p.k].point));
+    if (allowed < most && allowed < fan.interpolate(p, closing, most)) keep[p.k] = 1;
   }
 }
 
