@@ -63,17 +63,23 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
     const Vec3 d = 1e7 * (Vec3::Constant(1.5) + 0.5 * vec());
     B.inv_inertia[i] = i == 3 ? Mat3::Zero() : Mat3(d.asDiagonal());
   }
+  // A material per contact, each contact between two surfaces of it.
+  // Contacts 1 and 6 yield (their blocks of four take the spring's term),
+  // the blocks from 8 on are rigid.
+  std::vector<Material> materials;
+  for (int k = 0; k < 13; ++k) {
+    const double friction = k % 5 == 0 ? 0.0 : 0.5 + 0.4 * uniform();
+    const double compliance = k == 1 || k == 6 ? 0.5e-3 : 0.0;
+    materials.push_back({"m" + std::to_string(k), 1000.0, friction, 0.0, compliance});
+  }
+  const MaterialTable table(materials, {});
   Contacts c;
   for (int k = 0; k < 13; ++k) {
     const int a = k % 3, b = k % 4 == 3 ? 3 : (a + 1 + k % 2) % 3;
     const Vec3 n = k == 11   ? Vec3(0, 0, -1)
                    : k == 12 ? Vec3(1e-5, 0, 1).normalized()
                              : vec().normalized();
-    // Contacts 1 and 6 yield (their blocks of four take the spring's
-    // term), the blocks from 8 on are rigid.
-    const double compliance = k == 1 || k == 6 ? 1e-3 : 0.0;
-    c.push(a, b, n, 0.01 * vec(), 1e-4 * uniform(), 0.001,
-           {k % 5 == 0 ? 0.0 : 0.5 + 0.4 * uniform(), 0.0, compliance}, ContactKey{});
+    c.push(a, b, n, 0.01 * vec(), 1e-4 * uniform(), 0.001, table.pair_index(k, k), ContactKey{});
   }
   BilateralRow row;
   row.a = 0;
@@ -81,7 +87,7 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   row.ang_a = 0.01 * vec();
   row.bias = 0.1;
   CcpProblem p;
-  p.assemble(c, B, {row}, 1e-3, ContactSettings{});
+  p.assemble(c, table, B, {row}, 1e-3, ContactSettings{});
   const std::size_t m = p.row_count();
   ASSERT_EQ(m, 40u);
   // World rows, each with a spare past its end (RowBuffer::take).
@@ -289,13 +295,15 @@ TEST(Engine, ApgdMetricBoundsEachContactBlock) {
     const Vec3 d = i < 2 ? Vec3(Vec3::Constant(2e7)) : Vec3(1e7 * (Vec3::Constant(1.5) + vec()));
     B.inv_inertia[i] = i == 4 ? Mat3::Zero() : Mat3(R * d.asDiagonal() * R.transpose());
   }
+  const MaterialTable table({{"m", 1000.0, 0.5, 0.0}}, {});
   Contacts c;
   for (int k = 0; k < 20; ++k) {
     const int a = k % 4, b = k % 3 == 0 ? 4 : (a + 1) % 4;
-    c.push(a, b, vec().normalized(), 0.01 * vec(), 0.0, 0.001, {0.5, 0.0}, ContactKey{});
+    c.push(a, b, vec().normalized(), 0.01 * vec(), 0.0, 0.001, table.pair_index(0, 0),
+           ContactKey{});
   }
   CcpProblem p;
-  p.assemble(c, B, {}, 1e-3, ContactSettings{});
+  p.assemble(c, table, B, {}, 1e-3, ContactSettings{});
   auto part = [&](int body, const Vec3& r) -> Mat3 {
     const auto u = std::size_t(body);
     Mat3 rx;

@@ -292,7 +292,7 @@ void keep_unheld(const std::vector<Candidate>& c, const Vec3& n_g, const Hull& h
 // the members those cannot hold (keep_unheld). A group with other normals
 // (a corner) keeps its own. The kept go to `out` in the candidates' order.
 void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
-                     const SurfacePair& surfaces, const PairMotion& motion, double tolerance,
+                     std::uint32_t surfaces, const PairMotion& motion, double tolerance,
                      Contacts& out) {
   constexpr std::size_t kKeep = 5;
   constexpr double kSameNormal = 0.95;  // cos 18°
@@ -578,8 +578,8 @@ void Collider::narrowphase(const Model& model, const Particles& p, const Bodies&
   for (std::ptrdiff_t k = 0; k < particle_contacts; ++k) {
     const auto i = std::size_t(out.body_a[std::size_t(k)]);
     const auto j = std::size_t(out.body_b[std::size_t(k)]);
-    const double rel =
-        (p.velocity[i] - p.velocity[j]).norm() * h * (1.0 + out.restitution[std::size_t(k)]);
+    const double e = model.materials.surfaces(out.surfaces[std::size_t(k)]).restitution;
+    const double rel = (p.velocity[i] - p.velocity[j]).norm() * h * (1.0 + e);
     const double mi = p.mass[i], mj = p.mass[j];
     raise_to(kick_[i], rel * mj / (mi + mj));
     raise_to(kick_[j], rel * mi / (mi + mj));
@@ -607,7 +607,7 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
       const auto ui = std::size_t(i), uj = std::size_t(j);
       const ParticleShape& si = model.shapes[std::size_t(p.shape[ui])];
       const ParticleShape& sj = model.shapes[std::size_t(p.shape[uj])];
-      const SurfacePair surfaces = mat.pair(p.material[ui], p.material[uj]);
+      const std::uint32_t surfaces = mat.pair_index(p.material[ui], p.material[uj]);
       const double envelope = envelope_[ui] + envelope_[uj];
       const double sci = p.scale[ui], scj = p.scale[uj];
       candidates.clear();
@@ -676,7 +676,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
         geo::query(rb.shape, local_centre, bounding + envelope_[i] + surface_travel, hits);
         if (hits.empty()) continue;
       }
-      const SurfacePair surfaces = mat.pair(rb.material, p.material[i]);
+      const std::uint32_t surfaces = mat.pair_index(rb.material, p.material[i]);
       candidates.clear();
       for (std::size_t k = 0; k < s.centers.size(); ++k) {
         const Vec3& c = sphere_centre_[sphere_first_[i] + k];

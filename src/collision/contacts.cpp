@@ -13,25 +13,19 @@ void Contacts::clear() {
   point.clear();
   gap.clear();
   radius.clear();
-  friction.clear();
-  restitution.clear();
-  compliance.clear();
-  damping_ratio.clear();
+  surfaces.clear();
   key.clear();
 }
 
 void Contacts::push(int a, int b, const Vec3& n, const Vec3& p, double g, double r,
-                    const SurfacePair& surfaces, const ContactKey& k) {
+                    std::uint32_t surface_pair, const ContactKey& k) {
   body_a.push_back(a);
   body_b.push_back(b);
   normal.push_back(n);
   point.push_back(p);
   gap.push_back(g);
   radius.push_back(r);
-  friction.push_back(surfaces.friction);
-  restitution.push_back(surfaces.restitution);
-  compliance.push_back(surfaces.compliance);
-  damping_ratio.push_back(surfaces.damping_ratio);
+  surfaces.push_back(surface_pair);
   key.push_back(k);
 }
 
@@ -42,10 +36,7 @@ void Contacts::resize(std::size_t n) {
   point.resize(n);
   gap.resize(n);
   radius.resize(n);
-  friction.resize(n);
-  restitution.resize(n);
-  compliance.resize(n);
-  damping_ratio.resize(n);
+  surfaces.resize(n);
   key.resize(n);
 }
 
@@ -63,10 +54,7 @@ void Contacts::copy_at(std::size_t at, const Contacts& o) {
   put(point, at, o.point);
   put(gap, at, o.gap);
   put(radius, at, o.radius);
-  put(friction, at, o.friction);
-  put(restitution, at, o.restitution);
-  put(compliance, at, o.compliance);
-  put(damping_ratio, at, o.damping_ratio);
+  put(surfaces, at, o.surfaces);
   put(key, at, o.key);
 }
 

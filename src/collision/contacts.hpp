@@ -19,16 +19,15 @@ struct Contacts {
   std::vector<Vec3> point;       // midway between the two surfaces
   std::vector<double> gap;
   std::vector<double> radius;    // smaller sphere radius of the pair
-  std::vector<double> friction;
-  std::vector<double> restitution;
-  std::vector<double> compliance;  // m/N: 0 rigid, else the surfaces yield
-  std::vector<double> damping_ratio;  // of a yielding contact's spring
+  // The pair of materials (MaterialTable::pair_index): friction,
+  // restitution and yield are MaterialTable::surfaces of it.
+  std::vector<std::uint32_t> surfaces;
   std::vector<ContactKey> key;
 
   std::size_t size() const { return gap.size(); }
   void clear();
   void push(int a, int b, const Vec3& n, const Vec3& p, double g, double r,
-            const SurfacePair& surfaces, const ContactKey& k);
+            std::uint32_t surface_pair, const ContactKey& k);
   void resize(std::size_t n);
   // Writes `other`'s contacts at [at, at + other.size()), which must exist.
   void copy_at(std::size_t at, const Contacts& other);

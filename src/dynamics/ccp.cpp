@@ -39,15 +39,15 @@ SoftRow soft_row(double compliance, double zeta, double normal_mass, double gap,
 // A rigid contact's bias: close a positive gap exactly this step, push an
 // overlap out no faster than the recovery speed, and rebound from an
 // impact by the restitution.
-double rigid_bias(const Contacts& c, std::size_t k, const SolverBodies& B, double h,
-                  const ContactSettings& settings) {
+double rigid_bias(const Contacts& c, std::size_t k, double restitution, const SolverBodies& B,
+                  double h, const ContactSettings& settings) {
   const Vec3& n = c.normal[k];
   const int a = c.body_a[k], b = c.body_b[k];
   const Vec3 ra = c.point[k] - B.x[std::size_t(a)], rb = c.point[k] - B.x[std::size_t(b)];
   double bias = std::max(c.gap[k] / h, -settings.recovery_speed);
   const double approach = n.dot(point_velocity(B.v, B.w, b, rb) - point_velocity(B.v, B.w, a, ra));
   const bool impact = approach < -settings.restitution_threshold && c.gap[k] + h * approach < 0.0;
-  if (impact && c.restitution[k] > 0.0) bias = std::min(bias, c.restitution[k] * approach);
+  if (impact && restitution > 0.0) bias = std::min(bias, restitution * approach);
   return bias;
 }
 
@@ -85,8 +85,8 @@ void SolverBodies::resize(std::size_t n) {
   inv_inertia.resize(n);
 }
 
-void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
-                          const std::vector<BilateralRow>& rows, double h,
+void CcpProblem::assemble(const Contacts& c, const MaterialTable& materials,
+                          const SolverBodies& B, const std::vector<BilateralRow>& rows, double h,
                           const ContactSettings& settings) {
   bodies_ = &B;
   contacts_ = &c;
@@ -134,11 +134,12 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     a_[k] = c.body_a[k];
     b_[k] = c.body_b[k];
     const Vec3& n = c.normal[k];
+    const SurfacePair& surfaces = materials.surfaces(c.surfaces[k]);
     const Vec3 ra = c.point[k] - B.x[std::size_t(a_[k])];
     const Vec3 rb = c.point[k] - B.x[std::size_t(b_[k])];
     StoredScalar* f = &frame_[k / kLanes * kFrameBlock + k % kLanes];
     for (int c = 0; c < 3; ++c) f[std::size_t(c) * kLanes] = StoredScalar(n[c]);
-    f[3 * kLanes] = StoredScalar(c.friction[k]);
+    f[3 * kLanes] = StoredScalar(surfaces.friction);
     make_tangents(k);
     for (int c = 0; c < 3; ++c) {
       lever_[6 * k + std::size_t(c)] = StoredScalar(ra[c]);
@@ -147,9 +148,10 @@ void CcpProblem::assemble(const Contacts& c, const SolverBodies& B,
     const Vec3 nw = normal(k);  // the rounded row the kernel applies
     const double normal_mass =
         row_mass(B, a_[k], nw, lever_a(k).cross(nw)) + row_mass(B, b_[k], nw, lever_b(k).cross(nw));
-    const SoftRow row = c.compliance[k] > 0.0 ? soft_row(c.compliance[k], c.damping_ratio[k],
-                                                         normal_mass, c.gap[k], h)
-                                              : SoftRow{0.0, rigid_bias(c, k, B, h, settings)};
+    const SoftRow row =
+        surfaces.compliance > 0.0
+            ? soft_row(surfaces.compliance, surfaces.damping_ratio, normal_mass, c.gap[k], h)
+            : SoftRow{0.0, rigid_bias(c, k, surfaces.restitution, B, h, settings)};
     softness_[k] = row.softness;
     bias_[k] = row.bias;
     diag_max = std::max(diag_max, normal_mass + softness_[k]);

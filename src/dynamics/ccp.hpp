@@ -111,8 +111,9 @@ void apply_row(const SolverBodies& B, const BilateralRow& row, double impulse,
 class CcpProblem {
  public:
   // Builds the problem for this step. `rows` are the joints' and motors' rows.
-  void assemble(const Contacts& contacts, const SolverBodies& bodies,
-                const std::vector<BilateralRow>& rows, double h, const ContactSettings& settings);
+  void assemble(const Contacts& contacts, const MaterialTable& materials,
+                const SolverBodies& bodies, const std::vector<BilateralRow>& rows, double h,
+                const ContactSettings& settings);
 
   std::size_t contact_count() const { return a_.size(); }
   std::size_t row_count() const { return 3 * a_.size() + rows_.size(); }

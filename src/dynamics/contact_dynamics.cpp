@@ -82,7 +82,7 @@ void ContactDynamics::assemble(const Model& m, State& state, const Contacts& con
   stats.joint_drift =
       joint_rows(m, joint_frames_, state.bodies, int(state.particles.size()), h, rows_);
   const Contacts& ccp_contacts = dem ? kNoContacts : contacts;
-  problem_.assemble(ccp_contacts, solver_bodies_, rows_, h, m.contact);
+  problem_.assemble(ccp_contacts, m.materials, solver_bodies_, rows_, h, m.contact);
   gamma_.resize(problem_.row_count());
   if (m.solver.warm_start)
     problem_.warm_start(ccp_contacts.key, state.impulses, state.row_impulses, gamma_);
@@ -102,7 +102,7 @@ void ContactDynamics::measure_penetration(const Model& m, const Particles& parti
   for (std::ptrdiff_t s = 0; s < nc; ++s) {
     const auto k = std::size_t(s);
     const double pen = -contacts.gap[k], rel = pen / contacts.radius[k];
-    if (contacts.compliance[k] > 0.0) {
+    if (m.materials.surfaces(contacts.surfaces[k]).compliance > 0.0) {
       yield_max = std::max(yield_max, pen);
       continue;
     }

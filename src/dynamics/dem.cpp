@@ -135,7 +135,8 @@ DemContacts::PairConstants DemContacts::pair_constants(const Model& m, const Par
   const double rb = sphere_radius(m, p, b, c.key[k].feature_b);
   pc.r_star = std::isinf(ra) ? rb : std::isinf(rb) ? ra : ra * rb / (ra + rb);
   pc.m_star = 1.0 / (B.inv_mass[std::size_t(a)] + B.inv_mass[std::size_t(b)]);
-  pc.beta = damping(std::max(c.restitution[k], m.dem.min_restitution));
+  const double e = m.materials.surfaces(c.surfaces[k]).restitution;
+  pc.beta = damping(std::max(e, m.dem.min_restitution));
   return pc;
 }
 
@@ -166,7 +167,7 @@ void DemContacts::contact_force(const Model& m, const Particles& p, const Contac
   xi += h * vt;
   const double ct = kTsuji * pc.beta * std::sqrt(st * pc.m_star);
   Vec3 ft = -st * xi - ct * vt;
-  const double limit = c.friction[k] * fn;
+  const double limit = m.materials.surfaces(c.surfaces[k]).friction * fn;
   if (ft.norm() > limit) {  // sliding: the spring holds only what friction allows
     ft *= limit / ft.norm();
     xi = -(ft + ct * vt) / st;
@@ -177,7 +178,8 @@ void DemContacts::contact_force(const Model& m, const Particles& p, const Contac
 
 void DemContacts::cache_damping(const Model& m, const Contacts& c) {
   for (std::size_t k = 0; k < c.size(); ++k) {
-    const double e = std::max(c.restitution[k], m.dem.min_restitution);
+    const double e =
+        std::max(m.materials.surfaces(c.surfaces[k]).restitution, m.dem.min_restitution);
     const auto it = std::lower_bound(damping_.begin(), damping_.end(), std::make_pair(e, 0.0));
     if (it == damping_.end() || it->first != e)
       damping_.insert(it, {e, hertz_damping_for_restitution(e)});

@@ -38,8 +38,9 @@ void require(bool ok, const std::string& what) {
 // grounded drum. Twice that is allowed too; v_t is the slip at the contact
 // point at the start of the step. (The image force does not need a touch:
 // it acts at the distance of the nearest drum surface, nearest_drum.)
-double touch_tolerance(const Contacts& c, std::size_t k, const Bodies& bodies, std::size_t body,
-                       const Particles& p, std::size_t i, double h) {
+double touch_tolerance(const Model& model, const Contacts& c, std::size_t k, const Bodies& bodies,
+                       std::size_t body, const Particles& p, std::size_t i) {
+  const double h = model.step, friction = model.materials.surfaces(c.surfaces[k]).friction;
   const Vec3& w = bodies.angular_velocity[body];
   const double r = c.radius[k];
   const Vec3 arm = c.point[k] - bodies.pose[body].position;
@@ -50,7 +51,7 @@ double touch_tolerance(const Contacts& c, std::size_t k, const Bodies& bodies, s
   const Vec3 slip = particle - surface;
   const Vec3& n = c.normal[k];
   const double v_t = (slip - slip.dot(n) * n).norm();
-  return kTouchFraction * r + w.squaredNorm() * (rho + r) * h * h + 2.0 * c.friction[k] * v_t * h;
+  return kTouchFraction * r + w.squaredNorm() * (rho + r) * h * h + 2.0 * friction * v_t * h;
 }
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -246,7 +247,7 @@ ElectrostaticsStage::ElectrostaticsStage(ElectrostaticsSpec spec, const Model& m
 void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
                                 const Bodies& bodies, Particles& p) {
   const double h = model.step;
-  find_touches(contacts, bodies, p, h);
+  find_touches(model, contacts, bodies, p);
   const auto n = std::ptrdiff_t(p.size());
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
   for (std::ptrdiff_t s = 0; s < n; ++s) update(model, p, std::size_t(s), contacts, h);
@@ -261,7 +262,8 @@ void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
 // particle's contacts with one body follow each other in the list
 // (Collider::narrowphase), so each particle's entries are written by the
 // one chunk that holds that run.
-void ElectrostaticsStage::find_touches(const Contacts& c, const Bodies& bodies, const Particles& p, double h) {
+void ElectrostaticsStage::find_touches(const Model& model, const Contacts& c, const Bodies& bodies,
+                                       const Particles& p) {
   const std::size_t np = p.size();
   drum_contact_.assign(np, -1);
   near_contact_.assign(np, -1);
@@ -274,22 +276,22 @@ void ElectrostaticsStage::find_touches(const Contacts& c, const Bodies& bodies, 
   for_each_run_chunk(c.size(), kTouchChunk, same_pair, [&](std::size_t begin, std::size_t end) {
     for (std::size_t k = begin; k < end; ++k) {
       const int body = c.body_a[k];
-      if (body == drum || body == brush) touch(c, k, body == drum, bodies, p, h);
+      if (body == drum || body == brush) touch(model, c, k, body == drum, bodies, p);
     }
   });
 }
 
 // Contact k of particle c.body_b[k] with the drum or the brush, into its
 // touches.
-void ElectrostaticsStage::touch(const Contacts& c, std::size_t k, bool on_drum,
-                                const Bodies& bodies, const Particles& p, double h) {
+void ElectrostaticsStage::touch(const Model& model, const Contacts& c, std::size_t k,
+                                bool on_drum, const Bodies& bodies, const Particles& p) {
   const auto i = std::size_t(c.body_b[k]);
   if (on_drum) {
     std::int32_t& near = near_contact_[i];
     if (near < 0 || c.gap[k] < c.gap[std::size_t(near)]) near = std::int32_t(k);
   }
   const std::size_t body = std::size_t(c.body_a[k]) - p.size();
-  if (c.gap[k] > touch_tolerance(c, k, bodies, body, p, i, h)) return;
+  if (c.gap[k] > touch_tolerance(model, c, k, bodies, body, p, i)) return;
   if (!on_drum) {
     brush_touch_[i] = 1;
     return;

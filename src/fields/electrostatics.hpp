@@ -173,9 +173,10 @@ class ElectrostaticsStage {
              Particles& particles);
 
  private:
-  void find_touches(const Contacts& c, const Bodies& bodies, const Particles& p, double h);
-  void touch(const Contacts& c, std::size_t k, bool on_drum, const Bodies& bodies,
-             const Particles& p, double h);
+  void find_touches(const Model& model, const Contacts& c, const Bodies& bodies,
+                    const Particles& p);
+  void touch(const Model& model, const Contacts& c, std::size_t k, bool on_drum,
+             const Bodies& bodies, const Particles& p);
   const ElectricalMaterial& material(const Particles& p, std::size_t i) const;
   DrumGap nearest_drum(const ParticleShape& s, const Particles& p, std::size_t i) const;
   Site site(const Model& model, const Particles& p, std::size_t i, const Contacts& c) const;

@@ -11,21 +11,21 @@ namespace ces {
 MaterialTable::MaterialTable(std::vector<Material> materials, const std::vector<MaterialPair>& pairs)
     : materials_(std::move(materials)) {
   const std::size_t n = materials_.size();
-  friction_.resize(n * n);
-  restitution_.resize(n * n);
+  pairs_.resize(n * n);
   for (std::size_t a = 0; a < n; ++a)
     for (std::size_t b = 0; b < n; ++b) {
-      friction_[a * n + b] = std::min(materials_[a].friction, materials_[b].friction);
-      restitution_[a * n + b] = std::min(materials_[a].restitution, materials_[b].restitution);
+      SurfacePair& s = pairs_[a * n + b];
+      s.friction = std::min(materials_[a].friction, materials_[b].friction);
+      s.restitution = std::min(materials_[a].restitution, materials_[b].restitution);
+      s.compliance = materials_[a].compliance + materials_[b].compliance;
     }
   for (const MaterialPair& p : pairs) {
     for (auto [x, y] : {std::pair{p.a, p.b}, std::pair{p.b, p.a}}) {
-      if (p.friction) friction_[index(x, y)] = *p.friction;
-      if (p.restitution) restitution_[index(x, y)] = *p.restitution;
+      if (p.friction) pairs_[index(x, y)].friction = *p.friction;
+      if (p.restitution) pairs_[index(x, y)].restitution = *p.restitution;
     }
   }
-  damping_.resize(n * n);
-  for (std::size_t i = 0; i < n * n; ++i) damping_[i] = spring_damping_ratio(restitution_[i]);
+  for (SurfacePair& s : pairs_) s.damping_ratio = spring_damping_ratio(s.restitution);
 }
 
 namespace {

@@ -2,6 +2,7 @@
 // builds and the stepper reads. Nothing here knows about YAML or files.
 #pragma once
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <optional>
 #include <string>
@@ -56,19 +57,18 @@ class MaterialTable {
   MaterialTable() = default;
   MaterialTable(std::vector<Material> materials, const std::vector<MaterialPair>& pairs);
   const std::vector<Material>& materials() const { return materials_; }
-  double friction(int a, int b) const { return friction_[index(a, b)]; }
-  double restitution(int a, int b) const { return restitution_[index(a, b)]; }
-  SurfacePair pair(int a, int b) const {
-    const auto i = index(a, b);
-    return {friction_[i], restitution_[i],
-            materials_[std::size_t(a)].compliance + materials_[std::size_t(b)].compliance,
-            damping_[i]};
-  }
+  double friction(int a, int b) const { return pairs_[index(a, b)].friction; }
+  double restitution(int a, int b) const { return pairs_[index(a, b)].restitution; }
+  SurfacePair pair(int a, int b) const { return pairs_[index(a, b)]; }
+  // A pair of materials as one number, which a contact stores in place of
+  // its SurfacePair (collision/contacts.hpp), and the pair it stands for.
+  std::uint32_t pair_index(int a, int b) const { return std::uint32_t(index(a, b)); }
+  const SurfacePair& surfaces(std::uint32_t pair) const { return pairs_[pair]; }
 
  private:
   std::size_t index(int a, int b) const { return std::size_t(a) * materials_.size() + std::size_t(b); }
   std::vector<Material> materials_;
-  std::vector<double> friction_, restitution_, damping_;
+  std::vector<SurfacePair> pairs_;  // n x n, a's row
 };
 
 // A rigid particle: one sphere or a rigid cluster of (possibly overlapping)
