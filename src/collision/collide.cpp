@@ -20,6 +20,18 @@ double smallest_radius(const ParticleShape& s) {
   return *std::min_element(s.radii.begin(), s.radii.end());
 }
 
+// Particle i's bounding radius, at its scale.
+double bounding_radius(const Model& model, const Particles& p, std::size_t i) {
+  return model.shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i];
+}
+
+// What gravity and the forces change particle i's velocity by within the
+// step (the forces are this step's after the collision: the last step's
+// stand in for them, still in p.force).
+Vec3 forced_change(const Model& model, const Particles& p, std::size_t i) {
+  return model.step * (model.gravity + p.inv_mass[i] * p.force[i]);
+}
+
 // The largest impulse one contact can pass in a step between sides of
 // reduced mass m_red closing at v_close: the normal one is at most
 // (1 + e) m_red v_close, and friction, inside its cone, adds at most mu
@@ -417,13 +429,11 @@ void Collider::broadphase(const Model& model, const Particles& p, const Bodies& 
     // The envelope grows with the distance the particle can travel this step
     // (translation plus the swing of its outermost sphere), so nothing tunnels.
     // The translation includes what gravity and the external forces add to
-    // the velocity within the step (the forces are this step's after the
-    // collision: the last step's stand in for them, still in p.force):
-    // without them, at a 10 ms step, a charged flake pulled to the drum by
-    // its image charge (~100 m/s^2) outruns its envelope and goes
-    // millimetres into the drum.
-    const double bounding = s.bounding_radius * p.scale[i];
-    const double speed = (p.velocity[i] + h * (model.gravity + p.inv_mass[i] * p.force[i])).norm();
+    // the velocity within the step (forced_change): without them, at a 10 ms
+    // step, a charged flake pulled to the drum by its image charge
+    // (~100 m/s^2) outruns its envelope and goes millimetres into the drum.
+    const double bounding = bounding_radius(model, p, i);
+    const double speed = (p.velocity[i] + forced_change(model, p, i)).norm();
     const double travel =
         (std::max(p.velocity[i].norm(), speed) + p.angular_velocity[i].norm() * bounding) * h;
     envelope_[i] = model.contact.envelope_fraction * smallest_radius(s) * p.scale[i] + travel;
@@ -476,9 +486,9 @@ void Collider::struck_by_body(const Model& model, const Particles& p, const Bodi
     double approach = 0.0;
     for (const geo::SurfaceHit& hit : hits)
       approach = std::max(approach, -v_rel.dot(to_world * hit.normal));
-    const double bounding = model.shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i];
-    const double closing = approach + (p.angular_velocity[i].norm() + w_body.norm()) * bounding +
-                           h * (model.gravity + p.inv_mass[i] * p.force[i]).norm();
+    const double spin = p.angular_velocity[i].norm() + w_body.norm();
+    const double closing =
+        approach + spin * bounding_radius(model, p, i) + forced_change(model, p, i).norm();
     const SurfacePair surface = model.materials.pair(rb.material, p.material[i]);
     blow_[i] += largest_blow(surface, p.mass[i], closing);  // one from each body
     if (!moving || approach == 0.0) continue;
@@ -499,17 +509,14 @@ void Collider::struck_by_body(const Model& model, const Particles& p, const Bodi
 // order.
 void Collider::struck_by_neighbours(const Model& model, const Particles& p) {
   const double h = model.step;
-  auto bounding = [&](std::size_t i) {
-    return model.shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i];
-  };
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(pairs_.size()) > kParallelMin)
   for (std::ptrdiff_t k = 0; k < std::ptrdiff_t(pairs_.size()); ++k) {
     const auto i = std::size_t(pairs_[std::size_t(k)].first);
     const auto j = std::size_t(pairs_[std::size_t(k)].second);
     const Vec3 forces = h * (p.inv_mass[i] * p.force[i] - p.inv_mass[j] * p.force[j]);
     const double closing = (p.velocity[i] - p.velocity[j]).norm() + forces.norm() +
-                           p.angular_velocity[i].norm() * bounding(i) +
-                           p.angular_velocity[j].norm() * bounding(j);
+                           p.angular_velocity[i].norm() * bounding_radius(model, p, i) +
+                           p.angular_velocity[j].norm() * bounding_radius(model, p, j);
     const double mi = p.mass[i], mj = p.mass[j];
     const SurfacePair surface = model.materials.pair(p.material[i], p.material[j]);
     const double blow = largest_blow(surface, mi * mj / (mi + mj), closing);
@@ -532,9 +539,8 @@ void Collider::speed_changes(const Model& model, const Particles& p) {
   for (std::ptrdiff_t si = 0; si < std::ptrdiff_t(n); ++si) {
     const auto i = std::size_t(si);
     const double blow = blow_[i] + neighbour_blow_[i];
-    const double bounding = model.shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i];
-    const double linear = h * (model.gravity + p.inv_mass[i] * p.force[i]).norm();
-    const double angular = h * p.torque[i].norm() + blow * bounding;
+    const double linear = forced_change(model, p, i).norm();
+    const double angular = h * p.torque[i].norm() + blow * bounding_radius(model, p, i);
     change_[i] = {linear + blow * p.inv_mass[i], angular * p.inv_inertia[i].maxCoeff()};
   }
 }
