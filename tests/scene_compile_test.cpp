@@ -68,7 +68,7 @@ TEST(SceneLoad, HopperSceneHasMeshAndClusters) {
   const auto& mesh = std::get<std::shared_ptr<const geo::TriMesh>>(m.bodies[0].shape);
   EXPECT_EQ(mesh->triangles().size(), 4u);
   EXPECT_NEAR(mesh->bounds().max.x(), 0.12, 1e-12);    // drawn in mm, scale 0.001
-  EXPECT_DOUBLE_EQ(m.materials.friction(2, 0), 0.25);  // glass/steel override
+  EXPECT_DOUBLE_EQ(m.materials.pair(2, 0).friction, 0.25);  // glass/steel override
   ASSERT_EQ(m.shapes.size(), 2u);                      // sphere, flake
   const FeedComponent& flake = sim.feeds[0].mix[1];
   EXPECT_EQ(m.shapes[std::size_t(flake.shape)].centers.size(), 3u);
@@ -118,8 +118,10 @@ void expect_same_model(const Model& a, const Model& b) {
     EXPECT_EQ(std::tie(ma[i].name, ma[i].density, ma[i].friction, ma[i].restitution),
               std::tie(mb[i].name, mb[i].density, mb[i].friction, mb[i].restitution));
     for (std::size_t j = 0; j < ma.size(); ++j) {
-      EXPECT_EQ(a.materials.friction(int(i), int(j)), b.materials.friction(int(i), int(j)));
-      EXPECT_EQ(a.materials.restitution(int(i), int(j)), b.materials.restitution(int(i), int(j)));
+      const SurfacePair pa = a.materials.pair(int(i), int(j));
+      const SurfacePair pb = b.materials.pair(int(i), int(j));
+      EXPECT_EQ(pa.friction, pb.friction);
+      EXPECT_EQ(pa.restitution, pb.restitution);
     }
   }
   ASSERT_EQ(a.shapes.size(), b.shapes.size());

@@ -57,8 +57,6 @@ class MaterialTable {
   MaterialTable() = default;
   MaterialTable(std::vector<Material> materials, const std::vector<MaterialPair>& pairs);
   const std::vector<Material>& materials() const { return materials_; }
-  double friction(int a, int b) const { return pairs_[index(a, b)].friction; }
-  double restitution(int a, int b) const { return pairs_[index(a, b)].restitution; }
   SurfacePair pair(int a, int b) const { return pairs_[index(a, b)]; }
   // A pair of materials as one number, which a contact stores in place of
   // its SurfacePair (collision/contacts.hpp), and the pair it stands for.
