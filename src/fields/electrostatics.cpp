@@ -31,13 +31,15 @@ void require(bool ok, const std::string& what) {
 // (semi-implicit Euler moves it along a tangent; the solve pulls it back):
 // 3 µm at 60 rpm and 1 ms, 14 µm at 128 rpm. Twice that is allowed, on top
 // of the fraction of r. A particle SLIDING on the body rides higher: the
-// velocity-level cone complementarity (the relaxation of Anitescu and Tasora, 2010) gives a sliding contact the normal velocity μ |v_t|, so it starts each
-// step μ |v_t| h off the surface (50 µm for an FR-4 flake landing on the
-// drum 0.2 m/s faster than its surface, at μ = 0.5 and 0.5 ms: 17 % of its
-// spheres' radius), and a sliding conductor is still in contact with the
-// grounded drum. Twice that is allowed too; v_t is the slip at the contact
-// point at the start of the step. (The image force does not need a touch:
-// it acts at the distance of the nearest drum surface, nearest_drum.)
+// velocity-level cone complementarity (the relaxation of Anitescu and
+// Tasora, 2010) gives a sliding contact the normal velocity μ |v_t|, so it
+// starts each step μ |v_t| h off the surface (50 µm for an FR-4 flake
+// landing on the drum 0.2 m/s faster than its surface, at μ = 0.5 and
+// 0.5 ms: 17 % of its spheres' radius), and a sliding conductor is still
+// in contact with the grounded drum. Twice that is allowed too; v_t is the
+// slip at the contact point at the start of the step. (The image force
+// does not need a touch: it acts at the distance of the nearest drum
+// surface, nearest_drum.)
 double touch_tolerance(const Model& model, const Contacts& c, std::size_t k, const Bodies& bodies,
                        std::size_t body, const Particles& p, std::size_t i) {
   const double h = model.step, friction = model.materials.surfaces(c.surfaces[k]).friction;
