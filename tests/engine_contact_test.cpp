@@ -147,6 +147,28 @@ TEST(Engine, FlatRaftKeepsFourContactsAndStaysLevel) {
   EXPECT_LT(r - p.position[0].y(), 0.01 * r);
 }
 
+// Manifold::Four keeps the raft's deepest sphere (the first of its equal
+// gaps, a corner) and the three other corners: the largest quadrilateral,
+// which holds it level as the hull's corners do.
+TEST(Engine, FourPointManifoldKeepsTheCornersAndHoldsARaftLevel) {
+  const double r = 0.001;
+  auto m = base_model({0.5});
+  m->contact.manifold = Manifold::Four;
+  m->bodies.push_back(test::ground_plane());
+  auto w = raft_on(m, r);
+  w->step();
+  const Contacts& c = w->contacts();
+  ASSERT_EQ(c.size(), 4u);
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    EXPECT_NEAR(std::abs(c.point[k].x()), 4 * r, 1e-9);
+    EXPECT_NEAR(std::abs(c.point[k].z()), 4 * r, 1e-9);
+  }
+  for (int i = 0; i < 500; ++i) w->step();
+  const Particles& p = w->particles();
+  EXPECT_LT(std::abs((p.orientation[0] * Vec3::Unit(0)).y()), 1e-3);
+  EXPECT_LT(r - p.position[0].y(), 0.01 * r);
+}
+
 TEST(Engine, RaftInMeshCornerKeepsContactsOnBothFaces) {
   const double r = 0.001;
   auto m = base_model({0.5});
@@ -180,11 +202,13 @@ TEST(Engine, RaftInMeshCornerKeepsContactsOnBothFaces) {
 // the deepest are nearer than the hull's corners would have them, and the
 // corners and the deepest alone do not hold them as it rocks. With the
 // solve converged, no sphere may end a step in the bar by more than the
-// penetration tolerance (0.1 of a radius); with the corners and the
-// deepest alone, one does by 0.12.
-TEST(Engine, RaftRockingOnABarKeepsItsSpheresOut) {
+// penetration tolerance (0.1 of a radius) under Manifold::Hold; with the
+// corners and the deepest alone, one does by 0.12. Manifold::Four gives
+// that up, and the step reports it.
+double worst_rocking_on_a_bar(Manifold manifold) {
   const double r = 0.001, h = 0.25e-3;
   auto m = base_model({0.0}, h);
+  m->contact.manifold = manifold;
   m->gravity = Vec3(0, -g0, 0);
   m->solver.max_iterations = 2000;
   m->solver.tolerance = 1e-7;
@@ -198,7 +222,13 @@ TEST(Engine, RaftRockingOnABarKeepsItsSpheresOut) {
   p.angular_velocity[0] = Vec3(0, 0, 300.0);
   double worst = 0.0;
   for (int i = 0; i < 40; ++i) worst = std::max(worst, w->step().max_wall_penetration_relative);
-  EXPECT_LE(worst, m->solver.penetration_tolerance + 1e-6);
+  return worst;
+}
+
+TEST(Engine, RaftRockingOnABarKeepsItsSpheresOut) {
+  const double tolerance = SolverSettings{}.penetration_tolerance;
+  EXPECT_LE(worst_rocking_on_a_bar(Manifold::Hold), tolerance + 1e-6);
+  EXPECT_GT(worst_rocking_on_a_bar(Manifold::Four), tolerance);
 }
 
 // A sphere launched sliding without spin ends rolling at 5/7 of its speed

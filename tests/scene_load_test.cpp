@@ -106,6 +106,7 @@ TEST(SceneOverrides, ReplaceAndCreateKeys) {
                                          {"bodies[0].pose.position", "[0, 1 mm, 0]"},
                                          {"feeds.0.velocity_spread", "0"},
                                          {"contact.envelope", "0.5"},
+                                         {"contact.manifold", "four"},
                                      }));
   EXPECT_EQ(sim.model->solver.max_iterations, 7);
   EXPECT_EQ(sim.end_time, 0.02);
@@ -114,6 +115,7 @@ TEST(SceneOverrides, ReplaceAndCreateKeys) {
   EXPECT_EQ(sim.model->bodies[0].pose.position, Vec3(0, 0.001, 0));
   EXPECT_EQ(sim.feeds[0].velocity_spread, 0.0);
   EXPECT_EQ(sim.model->contact.envelope_fraction, 0.5);
+  EXPECT_EQ(sim.model->contact.manifold, Manifold::Four);
   EXPECT_NE(sim.resolved_yaml.find("max_iterations: 7"), std::string::npos);
 }
 

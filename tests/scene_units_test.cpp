@@ -169,6 +169,7 @@ TEST(SceneSchema, MinimalSceneGetsDefaults) {
   EXPECT_DOUBLE_EQ(sim.model->solver.penetration_tolerance, 0.1);
   EXPECT_EQ(sim.model->solver.max_iterations, 200);
   EXPECT_DOUBLE_EQ(sim.model->contact.envelope_fraction, 0.25);
+  EXPECT_EQ(sim.model->contact.manifold, Manifold::Hold);
   EXPECT_EQ(sim.model->gravity, Vec3::Zero());
   EXPECT_EQ(sim.output.dir, "out");
   EXPECT_TRUE(sim.active_components.empty());

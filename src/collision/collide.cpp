@@ -114,12 +114,13 @@ double cross(const Planar& o, const Planar& a, const Planar& b) {
 // The hull of a group's members across its normal, as hull_points leaves
 // it in its thread's buffer until its next call: the members in the plane,
 // and the hull's corners in order, counter-clockwise (the first and the
-// last corner of each chain appear twice).
+// last corner of each chain appear twice); and the deepest member.
 struct Hull {
   const Planar* members = nullptr;
   std::size_t count = 0;
   const Planar* corners = nullptr;
   std::size_t corner_count = 0;
+  Planar deepest;
 };
 
 // A hull's fan of triangles from its first corner o, for interpolating at
@@ -187,16 +188,14 @@ double Fan::interpolate(const Planar& p, const std::vector<double>& value, doubl
   return outside;
 }
 
-// A group's kept: the deepest and the corners of the members' convex hull
-// in the plane across the group's normal (Andrew's monotone chain, members
+// A group's deepest member and the corners of the members' convex hull in
+// the plane across the group's normal (Andrew's monotone chain, members
 // ordered by position, ties by contact order, so the choice is the same
-// whatever the gaps). Returns the hull, for keep_unheld.
-Hull hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> members,
-                 std::vector<std::uint8_t>& keep) {
+// whatever the gaps).
+Hull hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> members) {
   std::size_t deepest = members[0];
   for (std::size_t k : members)
     if (c[k].gap < c[deepest].gap) deepest = k;
-  keep[deepest] = 1;
   const Vec3& n = c[members[0]].normal;
   const Vec3 u = n.unitOrthogonal(), v = n.cross(u);
   // The members, a spare for sorting them, then the chain (at most two
@@ -225,8 +224,46 @@ Hull hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> m
       chain[top++] = p;
     }
   }
-  for (std::size_t i = 0; i < top; ++i) keep[chain[i].k] = 1;
-  return {order, m, chain, top};
+  const Vec3& x = c[deepest].point;
+  return {order, m, chain, top, {x.dot(u), x.dot(v), deepest}};
+}
+
+// A group's four (Manifold::Four): the deepest, the corner farthest from
+// it and, on each side of the line through those two, the corner farthest
+// from it: the triangles of largest area on that line, as Jolt prunes a
+// face's contacts. Members in a line keep the deepest and both ends.
+void keep_four(const Hull& hull, std::vector<std::uint8_t>& keep) {
+  const Planar& d = hull.deepest;
+  keep[d.k] = 1;
+  const Planar* far = nullptr;
+  double most = 0.0;
+  for (std::size_t i = 0; i < hull.corner_count; ++i) {
+    const Planar& q = hull.corners[i];
+    const double dx = q.x - d.x, dy = q.y - d.y, squared = dx * dx + dy * dy;
+    if (squared > most) {
+      most = squared;
+      far = &q;
+    }
+  }
+  if (!far) return;
+  keep[far->k] = 1;
+  const Planar *left = nullptr, *right = nullptr;
+  double high = 0.0, low = 0.0;
+  for (std::size_t i = 0; i < hull.corner_count; ++i) {
+    const double area = cross(d, *far, hull.corners[i]);
+    if (area > high) {
+      high = area;
+      left = &hull.corners[i];
+    }
+    if (area < low) {
+      low = area;
+      right = &hull.corners[i];
+    }
+  }
+  if (left) keep[left->k] = 1;
+  if (right) keep[right->k] = 1;
+  if (!left && !right)
+    for (std::size_t i = 0; i < hull.corner_count; ++i) keep[hull.corners[i].k] = 1;
 }
 
 // The motion of a pair's B side relative to its A side at the step's
@@ -296,15 +333,24 @@ void keep_unheld(const std::vector<Candidate>& c, const Vec3& n_g, const Hull& h
   }
 }
 
+// How reduce_manifold reduces a group: the scene's choice, and the overlap
+// aim Manifold::Hold holds the members to.
+struct Reduction {
+  Manifold manifold;
+  double tolerance;
+};
+
 // A flat face resting on another touches it with many of its spheres at
 // once (a flake lying on the drum: 19). The corners of the face's hull hold
 // it as well and cost less, so per group of nearly parallel normals a
-// pair's candidates keep the deepest (it carries the overlap), the hull's
-// corners (hull_points; manifold reduction, as Box2D and Jolt do it) and
-// the members those cannot hold (keep_unheld). A group with other normals
-// (a corner) keeps its own. The kept go to `out` in the candidates' order.
+// pair's candidates keep the deepest (it carries the overlap) and the
+// hull's corners (manifold reduction, as Box2D and Jolt do it): under
+// Manifold::Hold all the corners and the members those cannot hold
+// (keep_unheld), under Manifold::Four four of them (keep_four). A group
+// with other normals (a corner) keeps its own. The kept go to `out` in the
+// candidates' order.
 void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
-                     std::uint32_t surfaces, const PairMotion& motion, double tolerance,
+                     std::uint32_t surfaces, const PairMotion& motion, Reduction rule,
                      Contacts& out) {
   constexpr std::size_t kKeep = 5;
   constexpr double kSameNormal = 0.95;  // cos 18°
@@ -353,8 +399,14 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
       for (std::size_t k : members) keep[k] = 1;
       continue;
     }
-    const Hull hull = hull_points(c, members, keep);
-    keep_unheld(c, c[members[0]].normal, hull, motion, tolerance, keep);
+    const Hull hull = hull_points(c, members);
+    if (rule.manifold == Manifold::Four) {
+      keep_four(hull, keep);
+      continue;
+    }
+    keep[hull.deepest.k] = 1;
+    for (std::size_t i = 0; i < hull.corner_count; ++i) keep[hull.corners[i].k] = 1;
+    keep_unheld(c, c[members[0]].normal, hull, motion, rule.tolerance, keep);
   }
   for (std::size_t k = 0; k < n; ++k)
     if (keep[k]) push(c[k]);
@@ -601,7 +653,8 @@ void Collider::narrowphase(const Model& model, const Particles& p, const Bodies&
 
 void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& out) {
   const auto& mat = model.materials;
-  const double h = model.step, tolerance = model.solver.overlap_aim();
+  const double h = model.step;
+  const Reduction rule{model.contact.manifold, model.solver.overlap_aim()};
   run_chunked(pairs_.size(), chunks_, out, used_, [&](std::size_t begin, std::size_t end, Contacts& part) {
     static thread_local std::vector<Candidate> candidates;  // kept across steps
     for (std::size_t k = begin; k < end; ++k) {
@@ -634,7 +687,7 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
       const PairMotion motion{p.position[ui], p.velocity[ui], p.angular_velocity[ui],
                               p.position[uj], p.velocity[uj], p.angular_velocity[uj],
                               h,              change_[ui],   change_[uj]};
-      reduce_manifold(candidates, i, j, surfaces, motion, tolerance, part);
+      reduce_manifold(candidates, i, j, surfaces, motion, rule, part);
     }
   });
 }
@@ -659,7 +712,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   // and a grain in the brush nip is driven by a chain of blows no single
   // bound covers.
   const SpeedChange unbounded{std::numeric_limits<double>::infinity(), 0.0};
-  const double tolerance = model.solver.overlap_aim();
+  const Reduction rule{model.contact.manifold, model.solver.overlap_aim()};
   const auto& mat = model.materials;
   run_chunked(p.size(), chunks_, out, used_, [&](std::size_t begin, std::size_t end, Contacts& part) {
     // Per thread and kept across steps: no allocation per chunk.
@@ -705,7 +758,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
       const PairMotion motion{pose.position,         v_body,     w_body,    p.position[i],
                               p.velocity[i],         p.angular_velocity[i], model.step,
                               unbounded,             change_[i]};
-      reduce_manifold(candidates, solver_index, int(i), surfaces, motion, tolerance, part);
+      reduce_manifold(candidates, solver_index, int(i), surfaces, motion, rule, part);
     }
   });
 }

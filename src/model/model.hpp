@@ -172,12 +172,22 @@ struct SolverSettings {
   bool warm_start = defaults::kSolverWarmStart;
 };
 
+// What a pair's many contacts of one face are reduced to (collision/
+// collide.cpp, reduce_manifold). Hold: the deepest, the corners of their
+// hull and every member those cannot hold within the overlap aim, so that
+// no contact left out can end the step overlapping past it. Four: the
+// deepest and the three corners spanning the largest area with it, as
+// Box2D and Jolt reduce a face; a member left out may overlap past the
+// tolerance until a later step lists it. For scenes whose cost decides.
+enum class Manifold { Hold, Four };
+
 struct ContactSettings {
   // Pairs closer than envelope_fraction * (smaller radius) + |v_rel| * step
   // become contacts before they touch (the |v| h term stops tunnelling).
   double envelope_fraction = defaults::kContactEnvelope;
   double recovery_speed = defaults::kRecoverySpeed;  // m/s: cap on the speed of pushing out overlaps
   double restitution_threshold = defaults::kRestitutionThreshold;  // m/s: slower impacts are plastic
+  Manifold manifold = Manifold::Hold;
 };
 
 // Contact law: DVI (impulses from the cone complementarity problem, the

@@ -59,6 +59,8 @@ void Compiler::read_settings() {
   model_->contact.envelope_fraction = contact.at("envelope").number();
   model_->contact.recovery_speed = contact.at("recovery_speed").number();
   model_->contact.restitution_threshold = contact.at("restitution_threshold").number();
+  model_->contact.manifold =
+      contact.at("manifold").string() == "four" ? Manifold::Four : Manifold::Hold;
   model_->contact_model =
       contact.at("model").string() == "dem" ? ContactModel::DEM : ContactModel::DVI;
   const Node& dem = contact.at("dem");
