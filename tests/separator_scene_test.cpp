@@ -467,6 +467,7 @@ TEST(SeparatorScene, IndustrialMachineIsFedHalfATonneAnHourAcrossItsMetre) {
                                {"time.end", "0.1 s"},
                                {"output.trajectories", "{every: 0.1 s, format: csv}"}});
   ASSERT_TRUE(sim.electrostatics);
+  EXPECT_EQ(sim.model->contact.manifold, Manifold::Four);
   EXPECT_EQ(sim.electrostatics->drum.half_width, 0.5);
   for (const RigidBody& b : sim.model->bodies) {
     const geo::Aabb box = geo::local_bounds(b.shape);
