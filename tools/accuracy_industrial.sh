@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Regenerates docs/accuracy_industrial.md: what the settings of
 # scenes/ces_industrial.yaml cost in accuracy. That scene is too large to
-# run converged, so its settings (a 0.5 ms step, 25 iterations, the
-# contacts of a face reduced to four) are tried on the reference scene,
+# run converged, so its settings (a 0.5 ms step, 25 iterations, two
+# particles' contacts reduced to four) are tried on the reference scene,
 # scenes/ces_pcb.yaml, with each manifold, at seeds 1, 2, 3, and compared
 # particle by particle with tools/accuracy.sh's converged references
 # (run here if out/accuracy does not hold them).
@@ -36,7 +36,7 @@ cat > "$doc" <<END
 # Accuracy of the industrial scene's settings
 
 \`scenes/ces_industrial.yaml\` takes a 0.5 ms step and 25 iterations, and
-reduces the contacts of a face to four (\`contact.manifold: four\`): at
+reduces two particles' contacts to four (\`contact.manifold: four\`): at
 plant scale its cost decides. It is too large to run converged, so these
 settings (\`${industrial[*]}\`) are tried on the
 reference scene, \`scenes/ces_pcb.yaml\`, against the converged references of

@@ -707,12 +707,14 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   const Mat3 to_world = pose.orientation.toRotationMatrix();
   auto local = [&](const Vec3& x) -> Vec3 { return to_local * (x - pose.position); };
   const int solver_index = int(p.size()) + body;
-  // Against a body the cull leaves nothing out as out of reach: the wall
-  // guard (dynamics/safeguards.cpp) finishes only the rows that are listed,
-  // and a grain in the brush nip is driven by a chain of blows no single
-  // bound covers.
+  // Against a body the cull leaves nothing out as out of reach, and the
+  // manifold holds every member whatever the scene's contact.manifold: the
+  // wall guard (dynamics/safeguards.cpp) finishes only the rows that are
+  // listed, and a grain in the brush nip is driven by a chain of blows no
+  // single bound covers. (A flake of four rows on the drum sinks into it
+  // by over half a radius, nearer its image charge.)
   const SpeedChange unbounded{std::numeric_limits<double>::infinity(), 0.0};
-  const Reduction rule{model.contact.manifold, model.solver.overlap_aim()};
+  const Reduction rule{Manifold::Hold, model.solver.overlap_aim()};
   const auto& mat = model.materials;
   run_chunked(p.size(), chunks_, out, used_, [&](std::size_t begin, std::size_t end, Contacts& part) {
     // Per thread and kept across steps: no allocation per chunk.

@@ -172,13 +172,14 @@ struct SolverSettings {
   bool warm_start = defaults::kSolverWarmStart;
 };
 
-// What a pair's many contacts of one face are reduced to (collision/
-// collide.cpp, reduce_manifold). Hold: the deepest, the corners of their
-// hull and every member those cannot hold within the overlap aim, so that
-// no contact left out can end the step overlapping past it. Four: the
-// deepest and the three corners spanning the largest area with it, as
+// What two particles' many contacts of one face are reduced to
+// (collision/collide.cpp, reduce_manifold). Hold: the deepest, the corners
+// of their hull and every member those cannot hold within the overlap aim,
+// so that no contact left out can end the step overlapping past it. Four:
+// the deepest and the three corners spanning the largest area with it, as
 // Box2D and Jolt reduce a face; a member left out may overlap past the
 // tolerance until a later step lists it. For scenes whose cost decides.
+// A particle's contacts with a body are held whatever the choice.
 enum class Manifold { Hold, Four };
 
 struct ContactSettings {
