@@ -114,13 +114,12 @@ double cross(const Planar& o, const Planar& a, const Planar& b) {
 // The hull of a group's members across its normal, as hull_points leaves
 // it in its thread's buffer until its next call: the members in the plane,
 // and the hull's corners in order, counter-clockwise (the first and the
-// last corner of each chain appear twice); and the deepest member.
+// last corner of each chain appear twice).
 struct Hull {
   const Planar* members = nullptr;
   std::size_t count = 0;
   const Planar* corners = nullptr;
   std::size_t corner_count = 0;
-  Planar deepest;
 };
 
 // A hull's fan of triangles from its first corner o, for interpolating at
@@ -188,14 +187,16 @@ double Fan::interpolate(const Planar& p, const std::vector<double>& value, doubl
   return outside;
 }
 
-// A group's deepest member and the corners of the members' convex hull in
-// the plane across the group's normal (Andrew's monotone chain, members
+// A group's kept: the deepest and the corners of the members' convex hull
+// in the plane across the group's normal (Andrew's monotone chain, members
 // ordered by position, ties by contact order, so the choice is the same
-// whatever the gaps).
-Hull hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> members) {
+// whatever the gaps). Returns the hull, for keep_unheld.
+Hull hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> members,
+                 std::vector<std::uint8_t>& keep) {
   std::size_t deepest = members[0];
   for (std::size_t k : members)
     if (c[k].gap < c[deepest].gap) deepest = k;
+  keep[deepest] = 1;
   const Vec3& n = c[members[0]].normal;
   const Vec3 u = n.unitOrthogonal(), v = n.cross(u);
   // The members, a spare for sorting them, then the chain (at most two
@@ -224,46 +225,64 @@ Hull hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> m
       chain[top++] = p;
     }
   }
-  const Vec3& x = c[deepest].point;
-  return {order, m, chain, top, {x.dot(u), x.dot(v), deepest}};
+  for (std::size_t i = 0; i < top; ++i) keep[chain[i].k] = 1;
+  return {order, m, chain, top};
 }
 
-// A group's four (Manifold::Four): the deepest, the corner farthest from
-// it and, on each side of the line through those two, the corner farthest
+// A group's four (Manifold::Four): the deepest, the member farthest from
+// it and, on each side of the line through those two, the member farthest
 // from it: the triangles of largest area on that line, as Jolt prunes a
-// face's contacts. Members in a line keep the deepest and both ends.
-void keep_four(const Hull& hull, std::vector<std::uint8_t>& keep) {
-  const Planar& d = hull.deepest;
-  keep[d.k] = 1;
-  const Planar* far = nullptr;
-  double most = 0.0;
-  for (std::size_t i = 0; i < hull.corner_count; ++i) {
-    const Planar& q = hull.corners[i];
-    const double dx = q.x - d.x, dy = q.y - d.y, squared = dx * dx + dy * dy;
-    if (squared > most) {
-      most = squared;
-      far = &q;
-    }
+// face's contacts. Each of the three is a corner of the members' hull (a
+// distance from a point, or from a line, is largest at a corner), so no
+// hull is made: one pass over the members in the plane across the group's
+// normal, ties to the first. Members in a line keep the deepest and both
+// ends.
+void keep_four(const std::vector<Candidate>& c, std::span<const std::size_t> members,
+               std::vector<std::uint8_t>& keep) {
+  static thread_local std::vector<Planar> plane;
+  const Vec3& n = c[members[0]].normal;
+  const Vec3 u = n.unitOrthogonal(), v = n.cross(u);
+  plane.resize(members.size());
+  std::size_t deepest = 0;
+  for (std::size_t i = 0; i < members.size(); ++i) {
+    const Vec3& x = c[members[i]].point;
+    plane[i] = {x.dot(u), x.dot(v), members[i]};
+    if (c[members[i]].gap < c[members[deepest]].gap) deepest = i;
   }
+  // The member farthest from `from`, or null if all are at it.
+  auto farthest = [&](const Planar& from) -> const Planar* {
+    const Planar* far = nullptr;
+    double most = 0.0;
+    for (const Planar& q : plane) {
+      const double dx = q.x - from.x, dy = q.y - from.y, squared = dx * dx + dy * dy;
+      if (squared > most) {
+        most = squared;
+        far = &q;
+      }
+    }
+    return far;
+  };
+  const Planar& d = plane[deepest];
+  keep[d.k] = 1;
+  const Planar* far = farthest(d);
   if (!far) return;
   keep[far->k] = 1;
   const Planar *left = nullptr, *right = nullptr;
   double high = 0.0, low = 0.0;
-  for (std::size_t i = 0; i < hull.corner_count; ++i) {
-    const double area = cross(d, *far, hull.corners[i]);
+  for (const Planar& q : plane) {
+    const double area = cross(d, *far, q);
     if (area > high) {
       high = area;
-      left = &hull.corners[i];
+      left = &q;
     }
     if (area < low) {
       low = area;
-      right = &hull.corners[i];
+      right = &q;
     }
   }
   if (left) keep[left->k] = 1;
   if (right) keep[right->k] = 1;
-  if (!left && !right)
-    for (std::size_t i = 0; i < hull.corner_count; ++i) keep[hull.corners[i].k] = 1;
+  if (!left && !right) keep[farthest(*far)->k] = 1;
 }
 
 // The motion of a pair's B side relative to its A side at the step's
@@ -346,7 +365,7 @@ struct Reduction {
 // pair's candidates keep the deepest (it carries the overlap) and the
 // hull's corners (manifold reduction, as Box2D and Jolt do it): under
 // Manifold::Hold all the corners and the members those cannot hold
-// (keep_unheld), under Manifold::Four four of them (keep_four). A group
+// (keep_unheld), under Manifold::Four three corners (keep_four). A group
 // with other normals (a corner) keeps its own. The kept go to `out` in the
 // candidates' order.
 void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
@@ -399,13 +418,11 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
       for (std::size_t k : members) keep[k] = 1;
       continue;
     }
-    const Hull hull = hull_points(c, members);
     if (rule.manifold == Manifold::Four) {
-      keep_four(hull, keep);
+      keep_four(c, members, keep);
       continue;
     }
-    keep[hull.deepest.k] = 1;
-    for (std::size_t i = 0; i < hull.corner_count; ++i) keep[hull.corners[i].k] = 1;
+    const Hull hull = hull_points(c, members, keep);
     keep_unheld(c, c[members[0]].normal, hull, motion, rule.tolerance, keep);
   }
   for (std::size_t k = 0; k < n; ++k)
@@ -712,7 +729,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   // wall guard (dynamics/safeguards.cpp) finishes only the rows that are
   // listed, and a grain in the brush nip is driven by a chain of blows no
   // single bound covers. (A flake of four rows on the drum sinks into it
-  // by over half a radius, nearer its image charge.)
+  // past the tolerance, nearer its image charge.)
   const SpeedChange unbounded{std::numeric_limits<double>::infinity(), 0.0};
   const Reduction rule{Manifold::Hold, model.solver.overlap_aim()};
   const auto& mat = model.materials;
