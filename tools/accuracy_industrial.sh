@@ -16,9 +16,6 @@ out=out/accuracy
 doc=docs/accuracy_industrial.md
 seeds=(1 2 3)
 mkdir -p "$out"
-# As tools/accuracy.sh has it.
-reference=(--set time.step=0.125ms --set solver.tolerance=1e-5 --set solver.penetration_tolerance=0.02
-           --set solver.max_iterations=400)
 # scenes/ces_industrial.yaml's time.step and solver section.
 industrial=(--set time.step=0.5ms --set solver.max_iterations=25 --set solver.tolerance=1e-6)
 

@@ -1,7 +1,7 @@
 # Sourced by the tools that run ces-sim many times and write a document
-# from the runs (tools/accuracy.sh, tools/step_convergence.sh).
-# Reads the arguments [--report-only] [path/to/ces-sim] into report_only
-# and sim; defines run.
+# from the runs (tools/accuracy.sh, tools/accuracy_industrial.sh,
+# tools/step_convergence.sh). Reads the arguments [--report-only]
+# [path/to/ces-sim] into report_only and sim; defines run and reference.
 
 report_only=false
 if [[ ${1:-} == --report-only ]]; then report_only=true; shift; fi
@@ -18,3 +18,10 @@ run() {
     { echo "$0: the run $name failed: $sim $scene -o $out/$name $*" >&2; exit 1; }
   cut -d' ' -f1 /proc/loadavg >> "$out/$name.load"
 }
+
+# The converged reference of tools/accuracy.sh, against which
+# tools/accuracy_industrial.sh measures too: half the reference scene's
+# 0.25 ms step, a hundredth of its residual tolerance (1 mm/s) and a fifth
+# of its penetration tolerance (0.1).
+reference=(--set time.step=0.125ms --set solver.tolerance=1e-5 --set solver.penetration_tolerance=0.02
+           --set solver.max_iterations=400)
