@@ -7,6 +7,7 @@
 #include <limits>
 #include <span>
 #include <tuple>
+#include <utility>
 
 #include "common/parallel.hpp"
 
@@ -229,14 +230,49 @@ Hull hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> m
   return {order, m, chain, top};
 }
 
+// Of `plane`, the member farthest from `from` (ties to the first), or null
+// if all are at it.
+const Planar* farthest(std::span<const Planar> plane, const Planar& from) {
+  const Planar* far = nullptr;
+  double most = 0.0;
+  for (const Planar& q : plane) {
+    const double dx = q.x - from.x, dy = q.y - from.y, squared = dx * dx + dy * dy;
+    if (squared > most) {
+      most = squared;
+      far = &q;
+    }
+  }
+  return far;
+}
+
+// Of `plane`, the members farthest from the line a to b on its left and on
+// its right (ties to the first); null on a side with none off the line.
+std::pair<const Planar*, const Planar*> farthest_sides(std::span<const Planar> plane,
+                                                       const Planar& a, const Planar& b) {
+  const Planar *left = nullptr, *right = nullptr;
+  double high = 0.0, low = 0.0;
+  for (const Planar& q : plane) {
+    const double area = cross(a, b, q);
+    if (area > high) {
+      high = area;
+      left = &q;
+    }
+    if (area < low) {
+      low = area;
+      right = &q;
+    }
+  }
+  return {left, right};
+}
+
 // A group's four (Manifold::Four): the deepest, the member farthest from
 // it and, on each side of the line through those two, the member farthest
 // from it: the triangles of largest area on that line, as Jolt prunes a
 // face's contacts. Each of the three is a corner of the members' hull (a
 // distance from a point, or from a line, is largest at a corner), so no
-// hull is made: one pass over the members in the plane across the group's
-// normal, ties to the first. Members in a line keep the deepest and both
-// ends.
+// hull is made: one pass places the members in the plane across the
+// group's normal, three scans choose. Members in a line keep the deepest
+// and both ends.
 void keep_four(const std::vector<Candidate>& c, std::span<const std::size_t> members,
                std::vector<std::uint8_t>& keep) {
   static thread_local std::vector<Planar> plane;
@@ -249,40 +285,15 @@ void keep_four(const std::vector<Candidate>& c, std::span<const std::size_t> mem
     plane[i] = {x.dot(u), x.dot(v), members[i]};
     if (c[members[i]].gap < c[members[deepest]].gap) deepest = i;
   }
-  // The member farthest from `from`, or null if all are at it.
-  auto farthest = [&](const Planar& from) -> const Planar* {
-    const Planar* far = nullptr;
-    double most = 0.0;
-    for (const Planar& q : plane) {
-      const double dx = q.x - from.x, dy = q.y - from.y, squared = dx * dx + dy * dy;
-      if (squared > most) {
-        most = squared;
-        far = &q;
-      }
-    }
-    return far;
-  };
   const Planar& d = plane[deepest];
   keep[d.k] = 1;
-  const Planar* far = farthest(d);
+  const Planar* far = farthest(plane, d);
   if (!far) return;
   keep[far->k] = 1;
-  const Planar *left = nullptr, *right = nullptr;
-  double high = 0.0, low = 0.0;
-  for (const Planar& q : plane) {
-    const double area = cross(d, *far, q);
-    if (area > high) {
-      high = area;
-      left = &q;
-    }
-    if (area < low) {
-      low = area;
-      right = &q;
-    }
-  }
+  const auto [left, right] = farthest_sides(plane, d, *far);
   if (left) keep[left->k] = 1;
   if (right) keep[right->k] = 1;
-  if (!left && !right) keep[farthest(*far)->k] = 1;
+  if (!left && !right) keep[farthest(plane, *far)->k] = 1;
 }
 
 // The motion of a pair's B side relative to its A side at the step's
