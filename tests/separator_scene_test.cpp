@@ -479,6 +479,7 @@ TEST(SeparatorScene, IndustrialMachineIsFedHalfATonneAnHourAcrossItsMetre) {
   EXPECT_DOUBLE_EQ(feed.region.max.z() - feed.region.min.z(), 0.98);
   const fs::path dir = run_scene(sim, "industrial");
   const auto summary = nlohmann::json::parse(read_text(dir / "summary.json"));
+  EXPECT_EQ(summary["contact"]["manifold"], "four");
   const auto& balance = summary["balance"];
   EXPECT_TRUE(balance["exact"].get<bool>());
   const double fed = balance["fed"]["mass_kg"];

@@ -121,7 +121,9 @@ Json value_or_na(bool applies, double value) { return applies ? Json(value) : Js
 Json contact_json(const RunRecord& r) {
   const bool dem = r.sim->model->contact_model == ContactModel::DEM;
   const double rayleigh = r.solver.rayleigh_time_min;
+  const bool four = r.sim->model->contact.manifold == Manifold::Four;
   return {{"model", dem ? "dem" : "dvi"},
+          {"manifold", four ? "four" : "hold"},
           {"rayleigh_time_min_s", value_or_na(dem && std::isfinite(rayleigh), rayleigh)},
           {"steps_above_rayleigh_limit", r.solver.steps_above_rayleigh_limit}};
 }
