@@ -212,13 +212,20 @@ TEST(Engine, RaftInMeshCornerKeepsContactsOnBothFaces) {
 // penetration tolerance (0.1 of a radius) under Manifold::Hold; with the
 // corners and the deepest alone, one does by 0.12. Against a body the
 // contacts are held under Manifold::Four too.
-double worst_rocking_on_a_bar(Manifold manifold) {
-  const double r = 0.001, h = 0.25e-3;
-  auto m = base_model({0.0}, h);
+// The rocking rafts' model: frictionless, under gravity, the solve
+// converged.
+std::shared_ptr<Model> rocking_model(Manifold manifold) {
+  auto m = base_model({0.0}, 0.25e-3);
   m->contact.manifold = manifold;
   m->gravity = Vec3(0, -g0, 0);
   m->solver.max_iterations = 2000;
   m->solver.tolerance = 1e-7;
+  return m;
+}
+
+double worst_rocking_on_a_bar(Manifold manifold) {
+  const double r = 0.001;
+  auto m = rocking_model(manifold);
   RigidBody bar;
   bar.name = "bar";
   bar.shape = geo::Cylinder{15 * r, 0.05, 0.0};
@@ -250,12 +257,8 @@ struct Rocking {
 };
 
 Rocking rocking_on_a_ball(Manifold manifold) {
-  const double r = 0.001, h = 0.25e-3;
-  auto m = base_model({0.0}, h);
-  m->contact.manifold = manifold;
-  m->gravity = Vec3(0, -g0, 0);
-  m->solver.max_iterations = 2000;
-  m->solver.tolerance = 1e-7;
+  const double r = 0.001;
+  auto m = rocking_model(manifold);
   m->bodies.push_back(test::ground_plane());
   auto w = raft_on(m, r);
   Particles& p = w->particles();
