@@ -12,7 +12,8 @@
 # The runs are started at nice 10: on a shared machine they take what the
 # others leave, and the file says how loaded it was.
 set -eu
-end=${1:-5}
+scene_end=5  # scenes/ces_industrial.yaml's time.end, in seconds
+end=${1:-$scene_end}
 short=${2:-0.1}
 bin=${CES_SIM:-build/ces-sim}
 scene=scenes/ces_industrial.yaml
@@ -50,6 +51,6 @@ for k in 1 2 3; do
 done
 kill $sampler
 
-python3 bench/industrial_report.py "$out" "$start" "$cores" "$end" "$short" \
+python3 bench/industrial_report.py "$out" "$start" "$cores" "$end" "$short" "$scene_end" \
   > "$out/industrial.txt"
 cat "$out/industrial.txt"

@@ -1,6 +1,7 @@
 """bench/industrial.sh's report: reads the runs' summaries, GNU time's
 reports and the load samples from OUT, prints the text of industrial.txt.
-Usage: python3 bench/industrial_report.py OUT START CORES END SHORT"""
+Usage: python3 bench/industrial_report.py OUT START CORES END SHORT SCENE_END
+(SCENE_END: the scene's own time.end, in seconds)"""
 import json
 import platform
 import statistics
@@ -9,6 +10,7 @@ import sys
 from pathlib import Path
 
 out, start, cores, end, short = Path(sys.argv[1]), sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5]
+scene_end = float(sys.argv[6])
 STAGES = ["feed", "broadphase", "narrowphase", "forces", "assemble", "solve", "safeguards",
           "integrate", "collect", "output"]
 
@@ -116,10 +118,10 @@ def late_pace(name, s):
     last = float(data[-1][t])
     late = [r for r in data if float(r[t]) > 0.9 * last]
     seconds = sum(float(r[wall]) for r in late) / (len(late) * s["step_s"])
-    end = head.index("particles"), head.index("contacts")
+    particles, contacts = late[-1][head.index("particles")], late[-1][head.index("contacts")]
     print(f"over the last tenth, from {float(late[0][t]):g} s: {seconds:.0f} s per simulated second, "
-          f"{int(late[-1][end[0]])} particles and {int(late[-1][end[1]])} contacts at the end; "
-          f"at that pace the scene's 5 s (its time.end) take {5 * seconds / 3600:.1f} h\n")
+          f"{particles} particles and {contacts} contacts at the end; at that pace the scene's "
+          f"{scene_end:g} s (its time.end) take {scene_end * seconds / 3600:.1f} h\n")
 
 
 late_pace("full", full)
