@@ -285,6 +285,38 @@ TEST(Engine, RaftRockingOnABallKeepsItsSpheresOutUnlessFour) {
   EXPECT_GT(four.worst, 10.0 * held.worst);
 }
 
+// Two spheres 0.7 mm apart, each moving at 1 m/s: each one's envelope
+// (a quarter of its radius, 0.25 mm, and its own travel in the 1 ms step,
+// 1 mm) reaches the other, but riding together they cannot close the gap,
+// so no row is listed; moving towards each other at 0.4 m/s each they
+// close 0.8 mm, and the row is listed and stops them at contact (within
+// the penetration tolerance).
+struct PairOfSpheres {
+  std::size_t listed;
+  double overlap;  // of the radius, after the step
+};
+
+PairOfSpheres pair_moving(const Vec3& va, const Vec3& vb) {
+  const double r = 0.001, gap = 0.7e-3;
+  auto m = base_model({0.5});
+  World w(m);
+  w.add_particle(0, r, 0, Vec3(0, 0, 0), Quat::Identity(), va);
+  w.add_particle(0, r, 0, Vec3(2 * r + gap, 0, 0), Quat::Identity(), vb);
+  w.step();
+  const Particles& p = w.particles();
+  return {w.contacts().size(), (2 * r - (p.position[1] - p.position[0]).norm()) / r};
+}
+
+TEST(Engine, PairListsOnlyTheRowsItCanCloseInTheStep) {
+  const PairOfSpheres together = pair_moving(Vec3(0, 0, 1.0), Vec3(0, 0, 1.0));
+  EXPECT_EQ(together.listed, 0u);
+  EXPECT_LT(together.overlap, -0.69);  // still 0.7 mm apart
+  const PairOfSpheres closing = pair_moving(Vec3(0.4, 0, 0), Vec3(-0.4, 0, 0));
+  EXPECT_EQ(closing.listed, 1u);
+  EXPECT_LE(closing.overlap, SolverSettings{}.penetration_tolerance);
+  EXPECT_GT(closing.overlap, -1e-3);  // they met
+}
+
 // A sphere launched sliding without spin ends rolling at 5/7 of its speed
 // (angular momentum about the contact point is conserved). Tolerance 1 %.
 TEST(Engine, SlidingSphereEndsRollingAtFiveSevenths) {

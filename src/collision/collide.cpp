@@ -363,6 +363,23 @@ void keep_unheld(const std::vector<Candidate>& c, const Vec3& n_g, const Hull& h
   }
 }
 
+// The envelope of a particle at rest: a fraction of its smallest sphere's
+// radius.
+double resting_envelope(const Model& model, const Particles& p, std::size_t i) {
+  const ParticleShape& s = model.shapes[std::size_t(p.shape[i])];
+  return model.contact.envelope_fraction * smallest_radius(s) * p.scale[i];
+}
+
+// Each particle's envelope grows with its own travel in the step, so two
+// flakes riding the drum together list each other's spheres a millimetre
+// apart that their relative motion never closes. Out go the candidates
+// farther than the pair's resting envelopes plus what it can close there
+// this step (motion.reach): the envelope of the relative travel, which a
+// pile at rest has already.
+void drop_unreachable(const PairMotion& motion, double resting, std::vector<Candidate>& c) {
+  std::erase_if(c, [&](const Candidate& k) { return k.gap > resting + motion.reach(k.point); });
+}
+
 // How reduce_manifold reduces a group: the scene's choice, and the overlap
 // aim Manifold::Hold holds the members to.
 struct Reduction {
@@ -505,7 +522,6 @@ void Collider::broadphase(const Model& model, const Particles& p, const Bodies& 
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
   for (std::ptrdiff_t si = 0; si < std::ptrdiff_t(n); ++si) {
     const auto i = std::size_t(si);
-    const ParticleShape& s = model.shapes[std::size_t(p.shape[i])];
     // The envelope grows with the distance the particle can travel this step
     // (translation plus the swing of its outermost sphere), so nothing tunnels.
     // The translation includes what gravity and the external forces add to
@@ -516,7 +532,7 @@ void Collider::broadphase(const Model& model, const Particles& p, const Bodies& 
     const double speed = (p.velocity[i] + forced_change(model, p, i)).norm();
     const double travel =
         (std::max(p.velocity[i].norm(), speed) + p.angular_velocity[i].norm() * bounding) * h;
-    envelope_[i] = model.contact.envelope_fraction * smallest_radius(s) * p.scale[i] + travel;
+    envelope_[i] = resting_envelope(model, p, i) + travel;
     centers_[i] = p.position[i];
     reach_[i] = bounding + envelope_[i];
   }
@@ -715,6 +731,8 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
       const PairMotion motion{p.position[ui], p.velocity[ui], p.angular_velocity[ui],
                               p.position[uj], p.velocity[uj], p.angular_velocity[uj],
                               h,              change_[ui],   change_[uj]};
+      drop_unreachable(motion, resting_envelope(model, p, ui) + resting_envelope(model, p, uj),
+                       candidates);
       reduce_manifold(candidates, i, j, surfaces, motion, rule, part);
     }
   });
