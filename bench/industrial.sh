@@ -1,8 +1,9 @@
 #!/bin/bash
 # The plant-scale scene, scenes/ces_industrial.yaml, measured: one run on
-# every core to END simulated seconds (default: the scene's 5 s), then the
-# first SHORT seconds (default 0.1) on one thread and on two, three times
-# each, alternating.
+# every core to END simulated seconds (default: the scene's 5 s), its last
+# 0.05 s resumed from its checkpoint on one thread and on two (the machine
+# full), then the first SHORT seconds (default 0.1) on one thread and on
+# two, three times each, alternating.
 # Writes bench/out/industrial/industrial.txt (and prints it): the machine,
 # its load, the commands, and per run the wall time per stage, particles,
 # contacts, iterations, residual, overlap and peak resident memory (GNU
@@ -21,14 +22,40 @@ out=bench/out/industrial
 mkdir -p "$out"
 cores=$(nproc)
 
-# One run: its folder, and GNU time's report beside it.
+# One run: its folder, and GNU time's report beside it; more --set pairs
+# may follow.
 run() {
   local name=$1 threads=$2 until=$3 dir=$out/$1
+  shift 3
   rm -rf "$dir"
-  echo "nice -n 10 $bin $scene --set time.end=${until}s --threads $threads -q -o $dir" \
+  echo "nice -n 10 $bin $scene --set time.end=${until}s ${*:+$* }--threads $threads -q -o $dir" \
     > "$out/$name.command"
   /usr/bin/time -v -o "$out/$name.time" nice -n 10 "$bin" "$scene" --set "time.end=${until}s" \
-    --threads "$threads" -q -o "$dir" > /dev/null
+    "$@" --threads "$threads" -q -o "$dir" > /dev/null
+}
+
+# The full run's checkpoint, copied as it appears (the run clears it when
+# it ends) into two folders that `ces-sim resume` continues.
+span=0.05
+if ! python3 -c "import sys; sys.exit(not $end > 2 * $span)"; then
+  echo "bench/industrial.sh: END must be over $(python3 -c "print(2 * $span)") s" >&2
+  exit 2
+fi
+at=$(python3 -c "print(round($end - $span, 6))")
+keep_checkpoint() {
+  local from=$out/full/partial
+  until [ -f "$from/checkpoint.bin" ]; do sleep 1; done
+  for threads in 1 2; do
+    rm -rf "$out/resume_$threads"
+    mkdir -p "$out/resume_$threads"
+    cp -r "$from" "$out/resume_$threads/partial"
+  done
+}
+resume() {
+  local threads=$1 dir=$out/resume_$1
+  echo "nice -n 10 $bin resume $dir --threads $threads -q" > "$out/resume_$threads.command"
+  /usr/bin/time -v -o "$out/resume_$threads.time" nice -n 10 "$bin" resume "$dir" \
+    --threads "$threads" -q > /dev/null
 }
 
 # The load the machine carried: its 1-minute load average every 10 s.
@@ -38,11 +65,17 @@ sample_load() {
 rm -f "$out/load.txt"
 sample_load &
 sampler=$!
-trap 'kill $sampler 2>/dev/null || true' EXIT
+keeper=
+trap 'kill $sampler $keeper 2>/dev/null || true' EXIT
 
 start=$(date -u '+%Y-%m-%d %H:%M UTC')
 run empty "$cores" 0.0005  # one step: the process without particles
-run full "$cores" "$end"
+keep_checkpoint &
+keeper=$!
+run full "$cores" "$end" --set "output.checkpoint.every=${at}s"
+wait $keeper
+resume 1
+resume 2
 # The short runs three times each, alternating: on a shared machine a busy
 # moment moves one of them, not the speed-up taken from their medians.
 for k in 1 2 3; do
@@ -51,6 +84,6 @@ for k in 1 2 3; do
 done
 kill $sampler
 
-python3 bench/industrial_report.py "$out" "$start" "$cores" "$end" "$short" "$scene_end" \
+python3 bench/industrial_report.py "$out" "$start" "$cores" "$end" "$short" "$scene_end" "$at" \
   > "$out/industrial.txt"
 cat "$out/industrial.txt"

@@ -1,7 +1,8 @@
 """bench/industrial.sh's report: reads the runs' summaries, GNU time's
 reports and the load samples from OUT, prints the text of industrial.txt.
-Usage: python3 bench/industrial_report.py OUT START CORES END SHORT SCENE_END
-(SCENE_END: the scene's own time.end, in seconds)"""
+Usage: python3 bench/industrial_report.py OUT START CORES END SHORT SCENE_END AT
+(SCENE_END: the scene's own time.end, in seconds; AT: the full run's
+checkpoint, from which resume_1 and resume_2 ran to END)"""
 import json
 import platform
 import statistics
@@ -10,7 +11,7 @@ import sys
 from pathlib import Path
 
 out, start, cores, end, short = Path(sys.argv[1]), sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5]
-scene_end = float(sys.argv[6])
+scene_end, at = float(sys.argv[6]), float(sys.argv[7])
 STAGES = ["feed", "broadphase", "narrowphase", "forces", "assemble", "solve", "safeguards",
           "integrate", "collect", "output"]
 
@@ -125,6 +126,31 @@ def late_pace(name, s):
 
 
 late_pace("full", full)
+
+
+def resumed_steps(name):
+    """The steps a resumed run made after the checkpoint: their wall
+    seconds summed, their count, and the last row."""
+    rows = [line.split(",") for line in (out / name / "steps.csv").read_text().splitlines()]
+    head, data = rows[0], rows[1:]
+    t, wall = head.index("time_s"), head.index("wall_s")
+    after = [r for r in data if float(r[t]) > at + 1e-9]
+    last = dict(zip(head, after[-1]))
+    return sum(float(r[wall]) for r in after), len(after), last
+
+
+print("## The full machine, 1 -> 2 threads\n")
+one_s, steps, one_last = resumed_steps("resume_1")
+two_s, _, two_last = resumed_steps("resume_2")
+same = all(one_last[k] == two_last[k] for k in one_last if k != "wall_s")
+print("commands: " + (out / "resume_1.command").read_text().strip() + "; " +
+      (out / "resume_2.command").read_text().strip())
+print(f"the full run's checkpoint at {at:g} s resumed to {end} s ({steps} steps; {one_last['particles']} "
+      f"particles and {one_last['contacts']} contacts at the end), the steps' wall_s summed: "
+      f"{one_s:.1f} s on 1 thread, {two_s:.1f} s on 2, speed-up {one_s / two_s:.2f}; "
+      f"the two end on the same step: {same}\n")
+
+
 def median_run(prefix):
     """Of PREFIX_1..3, the run whose step time is the median."""
     names = sorted((f"{prefix}_{k}" for k in (1, 2, 3)), key=lambda n: step_seconds(summary(n)))
