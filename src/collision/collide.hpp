@@ -5,18 +5,12 @@
 
 #include "collision/broadphase.hpp"
 #include "collision/contacts.hpp"
+#include "collision/manifold.hpp"
 #include "common/parallel.hpp"
 #include "model/model.hpp"
 #include "model/state.hpp"
 
 namespace ces {
-
-// The most a particle's velocity can change within a step, besides what
-// the contacts being reduced give it: at a point d from its centre, by
-// linear + angular * d (m/s).
-struct SpeedChange {
-  double linear = 0.0, angular = 0.0;
-};
 
 class Collider {
  public:
