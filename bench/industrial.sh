@@ -37,11 +37,10 @@ run() {
 # The full run's checkpoint, copied as it appears (the run clears it when
 # it ends) into two folders that `ces-sim resume` continues.
 span=0.05
-if ! python3 -c "import sys; sys.exit(not $end > 2 * $span)"; then
-  echo "bench/industrial.sh: END must be over $(python3 -c "print(2 * $span)") s" >&2
+at=$(python3 -c "print(round($end - $span, 6)) if $end > 2 * $span else exit(1)") || {
+  echo "bench/industrial.sh: END must be over twice $span s" >&2
   exit 2
-fi
-at=$(python3 -c "print(round($end - $span, 6))")
+}
 keep_checkpoint() {
   local from=$out/full/partial
   until [ -f "$from/checkpoint.bin" ]; do sleep 1; done

@@ -108,21 +108,26 @@ print(f"Command: bash bench/industrial.sh {end} {short}\n")
 full = describe("full", f"Scene to {end} s on {cores} threads")
 
 
+def step_rows(name):
+    """A run's steps.csv, each row a dict by column name, values as text."""
+    lines = (out / name / "steps.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    return [dict(zip(head, line.split(","))) for line in lines[1:]]
+
+
 def late_pace(name, s):
     """The run's pace over its last tenth, from steps.csv: the machine fills
     for as long as its particles stay in it (flight, and the FR-4 carried
     to the brush), so the whole run's average understates the pace once it
     is full."""
-    rows = [line.split(",") for line in (out / name / "steps.csv").read_text().splitlines()]
-    head, data = rows[0], rows[1:]
-    t, wall = head.index("time_s"), head.index("wall_s")
-    last = float(data[-1][t])
-    late = [r for r in data if float(r[t]) > 0.9 * last]
-    seconds = sum(float(r[wall]) for r in late) / (len(late) * s["step_s"])
-    particles, contacts = late[-1][head.index("particles")], late[-1][head.index("contacts")]
-    print(f"over the last tenth, from {float(late[0][t]):g} s: {seconds:.0f} s per simulated second, "
-          f"{particles} particles and {contacts} contacts at the end; at that pace the scene's "
-          f"{scene_end:g} s (its time.end) take {scene_end * seconds / 3600:.1f} h\n")
+    rows = step_rows(name)
+    last = float(rows[-1]["time_s"])
+    late = [r for r in rows if float(r["time_s"]) > 0.9 * last]
+    seconds = sum(float(r["wall_s"]) for r in late) / (len(late) * s["step_s"])
+    print(f"over the last tenth, from {float(late[0]['time_s']):g} s: {seconds:.0f} s per simulated "
+          f"second, {late[-1]['particles']} particles and {late[-1]['contacts']} contacts at the end; "
+          f"at that pace the scene's {scene_end:g} s (its time.end) take "
+          f"{scene_end * seconds / 3600:.1f} h\n")
 
 
 late_pace("full", full)
@@ -131,12 +136,8 @@ late_pace("full", full)
 def resumed_steps(name):
     """The steps a resumed run made after the checkpoint: their wall
     seconds summed, their count, and the last row."""
-    rows = [line.split(",") for line in (out / name / "steps.csv").read_text().splitlines()]
-    head, data = rows[0], rows[1:]
-    t, wall = head.index("time_s"), head.index("wall_s")
-    after = [r for r in data if float(r[t]) > at + 1e-9]
-    last = dict(zip(head, after[-1]))
-    return sum(float(r[wall]) for r in after), len(after), last
+    after = [r for r in step_rows(name) if float(r["time_s"]) > at + 1e-9]
+    return sum(float(r["wall_s"]) for r in after), len(after), after[-1]
 
 
 print("## The full machine, 1 -> 2 threads\n")
