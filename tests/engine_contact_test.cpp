@@ -317,6 +317,28 @@ TEST(Engine, PairListsOnlyTheRowsItCanCloseInTheStep) {
   EXPECT_GT(closing.overlap, -1e-3);  // they met
 }
 
+// Two spheres riding together 0.6 mm apart (r = 1 mm, 1 m/s across their
+// line, 1 ms steps): their relative travel cannot close the gap, but a
+// sphere of 27 times the mass strikes the rear one from behind at 1 m/s
+// within the step and drives it at about 0.96 m/s into the front one. The
+// pair keeps its row for what a neighbour's blow can add to its speed
+// (Collider::struck_by_neighbours): without it the rear sphere ends the
+// step about 30 % of its radius inside the front one.
+TEST(Engine, PairKeepsTheRowsANeighboursBlowCanClose) {
+  const double r = 0.001, heavy = 3.0 * r, gap = 0.6e-3;
+  const Vec3 riding(0, 0, 1.0);
+  World w(base_model({0.5}));
+  w.add_particle(0, r, 0, Vec3(0, 0, 0), Quat::Identity(), riding);
+  w.add_particle(0, r, 0, Vec3(2 * r + gap, 0, 0), Quat::Identity(), riding);
+  w.add_particle(0, heavy, 0, Vec3(3 * r + gap + heavy + 0.05e-3, 0, 0), Quat::Identity(),
+                 riding + Vec3(-1.0, 0, 0));
+  w.step();
+  const Particles& p = w.particles();
+  EXPECT_LT(p.velocity[1].x(), -0.3);  // the blow reached the rear sphere
+  const double overlap = (2 * r - (p.position[1] - p.position[0]).norm()) / r;
+  EXPECT_LE(overlap, SolverSettings{}.penetration_tolerance);
+}
+
 // A sphere launched sliding without spin ends rolling at 5/7 of its speed
 // (angular momentum about the contact point is conserved). Tolerance 1 %.
 TEST(Engine, SlidingSphereEndsRollingAtFiveSevenths) {
