@@ -126,7 +126,7 @@ const StressCase kPassing[] = {
     // neighbours), no energy gained; grains overlap each other by up to 2.2
     // radii (rebounding grains meet arriving ones 15 m/s apart, the solve
     // stops at its cap), which the summary reports, as a stress case may
-    // instead of meeting the bound. Their overlap with the wall is 0.
+    // instead of meeting the bound. Their overlap with the wall stays small.
     {"impact_plate", "impact_plate.yaml", "", true, true},
     {"impact_mesh", "impact_mesh.yaml", "", true, true},
     // Mass ratio 1:1000 at the scenes' 500 iterations (the scene files say
@@ -142,16 +142,10 @@ const StressCase kPassing[] = {
      "--set solver.max_iterations=100", true, true, 1e6 * 4.0 / 3.0 * M_PI * 1e-9},
     {"mass_ratio_plate", "mass_ratio_plate.yaml", "--set time.end=0.3s", false, true},
     // The reference machine at 10 ms, 20 times its step, for 0.1 s: grains
-    // overlap each other by up to 27 % of a radius (1.5 radii before the
-    // solver's metric; reported), none is in the drum
+    // overlap each other past the bound (reported), and none is in the drum
     // by more than a radius (World::limit_spin keeps flakes from turning by
-    // radians within a step; 2.2 radii, centres inside the drum, without
-    // it). The full 2 s run (80 s on two threads, not in CI) passes as well,
-    // at seeds 1 and 2: 0.78 radii at worst; it failed at 5.3, flakes sunk
-    // into the drum at the brush nip, before the wall guard's sweeps were
-    // finished body by body, and at seed 2 with a flake pulled into the
-    // drum by its image charge faster than the envelope then allowed
-    // (docs/accuracy.md, section 4; the nip itself is in engine_test.cpp).
+    // radians within a step, the wall guard finishes the brush nip's rows).
+    // The full 2 s run is judged in docs/accuracy_stress.md.
     {"step_10ms", "step_10ms.yaml", "--set time.end=0.1s --set feeds.nozzle.duration=0.05s", true,
      false},
 };
