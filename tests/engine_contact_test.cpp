@@ -404,7 +404,8 @@ double release_angle(double v0) {
     const double theta = std::atan2(x.x(), x.y());
     // Detached once the contact carries no load.
     double load = 0.0;
-    for (std::size_t k = 0; k < w.contacts().size(); ++k) load += w.impulses()[std::ptrdiff_t(3 * k)];
+    for (std::size_t k = 0; k < w.contacts().size(); ++k)
+      load += w.impulses()[std::ptrdiff_t(3 * k)];
     if (theta > 0.1 && load <= 0.0) return theta;
   }
   return -1.0;
