@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "feed/shapes.hpp"
+#include "output/energy.hpp"
 #include "separator_support.hpp"
 #include "sim/world.hpp"
 
@@ -16,9 +17,8 @@ using namespace test;
 
 // Kinetic energy of particle 0 at velocity v, spin w, in orientation q.
 double kinetic_energy(const Particles& p, const Vec3& v, const Vec3& w, const Quat& q) {
-  const Vec3 local = q.conjugate() * w;
   return 0.5 * p.mass[0] * v.squaredNorm() +
-         0.5 * local.cwiseProduct(local).cwiseQuotient(p.inv_inertia[0]).sum();
+         output::rotational_energy(q, p.inv_inertia[0].cwiseInverse(), w);
 }
 
 // The work the contacts did on particle 0 in each step: its kinetic energy

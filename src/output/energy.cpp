@@ -4,24 +4,19 @@
 #include <cmath>
 
 namespace ces::output {
-namespace {
 
-// Rotational kinetic energy of a body with principal inertia `inertia`
-// (body frame) turning at world angular velocity w.
-double rotational(const Quat& q, const Vec3& inertia, const Vec3& w) {
+double rotational_energy(const Quat& q, const Vec3& inertia, const Vec3& w) {
   const Vec3 wb = q.conjugate() * w;
   return 0.5 * wb.dot(inertia.cwiseProduct(wb));
 }
-
-}  // namespace
 
 MechanicalEnergy mechanical_energy(const Model& m, const State& state) {
   const Particles& p = state.particles;
   MechanicalEnergy e;
   for (std::size_t i = 0; i < p.size(); ++i) {
     const double kinetic = 0.5 * p.mass[i] * p.velocity[i].squaredNorm() +
-                           rotational(p.orientation[i], p.inv_inertia[i].cwiseInverse(),
-                                      p.angular_velocity[i]);
+                           rotational_energy(p.orientation[i], p.inv_inertia[i].cwiseInverse(),
+                                             p.angular_velocity[i]);
     const double potential = -p.mass[i] * m.gravity.dot(p.position[i]);
     // A non-finite particle is about to be removed and reported as lost
     // ("non-finite state"); counted here, it would turn every sum into NaN.
@@ -34,7 +29,7 @@ MechanicalEnergy mechanical_energy(const Model& m, const State& state) {
     const RigidBody& body = m.bodies[k];
     if (body.kind != BodyKind::Dynamic) continue;
     e.kinetic += 0.5 * body.mass * b.velocity[k].squaredNorm() +
-                 rotational(b.pose[k].orientation, body.inertia, b.angular_velocity[k]);
+                 rotational_energy(b.pose[k].orientation, body.inertia, b.angular_velocity[k]);
     e.potential -= body.mass * m.gravity.dot(b.pose[k].position);
   }
   return e;

@@ -47,6 +47,10 @@ struct MechanicalEnergy {
 };
 MechanicalEnergy mechanical_energy(const Model& model, const State& state);
 
+// Rotational kinetic energy of a body with principal inertia `inertia`
+// (body frame, orientation q) turning at world angular velocity w.
+double rotational_energy(const Quat& q, const Vec3& inertia, const Vec3& w);
+
 // Why a scene is not passive ("kinematic body 'drum' moves"), or "".
 std::string why_not_passive(const Simulation& sim);
 
