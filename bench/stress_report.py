@@ -1,7 +1,7 @@
 """The stress scenes' full runs against their pass criteria (docs/accuracy.md,
 section 4; tests/stress_test.cpp checks the short versions the same way).
 
-  stress_report.py --line DIR NAME       one line for the run in DIR/NAME
+  stress_report.py --row DIR NAME        the table's row for the run in DIR/NAME
   stress_report.py --doc DIR DOC NAME... the table of the runs, into DOC
 
 Written by bench/stress.sh."""
@@ -87,21 +87,6 @@ def verdict(name, s):
     return "passes"
 
 
-def line(folder, name):
-    s = summary(folder)
-    solver, b = s["solver"], s["balance"]
-    return (f"{name:18s} complete={s['complete']} wall={s['wall_time_s']['total']:.0f}s "
-            f"particles={b['fed']['count']} "
-            f"left_domain={b['lost_by_reason']['left domain']['count']} "
-            f"non_finite={b['lost_by_reason']['non-finite state']['count']} "
-            f"balance_exact={b['exact']} "
-            f"penetration={percent(solver['max_penetration_relative'], '.2f')}% "
-            f"wall_penetration={percent(solver['max_wall_penetration_relative'], '.2f')}% "
-            f"energy_gain={percent(s['energy']['max_gain_relative'])}% "
-            f"residual_p95={solver['residual_p95_mps']:.2g}m/s "
-            f"at_cap={solver['steps_at_iteration_cap']}/{solver['steps_solved']} {s['reason']}")
-
-
 def row(folder, name):
     s = summary(folder)
     solver, b = s["solver"], s["balance"]
@@ -139,8 +124,8 @@ def document(out, names):
 
 
 if __name__ == "__main__":
-    if len(sys.argv) == 4 and sys.argv[1] == "--line":
-        print(line(os.path.join(sys.argv[2], sys.argv[3]), sys.argv[3]))
+    if len(sys.argv) == 4 and sys.argv[1] == "--row":
+        print(row(os.path.join(sys.argv[2], sys.argv[3]), sys.argv[3]))
     elif len(sys.argv) >= 5 and sys.argv[1] == "--doc":
         with open(sys.argv[3], "w") as f:
             f.write(document(sys.argv[2], sys.argv[4:]))
