@@ -30,10 +30,12 @@ GRAVITY = 9.81  # m/s^2, every stress scene's
 def summary(folder):
     """The run's summary; a run that failed or was stopped left it in
     partial/, marked incomplete."""
-    path = os.path.join(folder, "summary.json")
-    if not os.path.exists(path):
-        path = os.path.join(folder, "partial", "summary.json")
-    return json.load(open(path))
+    for path in (os.path.join(folder, "summary.json"),
+                 os.path.join(folder, "partial", "summary.json")):
+        if os.path.exists(path):
+            return json.load(open(path))
+    sys.exit(f"{folder}: no summary.json; the run did not start (run it again without "
+             "--quiet to see why)")
 
 
 def percent(x, digits=".3g"):
