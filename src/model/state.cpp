@@ -21,6 +21,8 @@ void Particles::push(std::uint64_t new_id, int shape_index, double size_scale,
   charge.push_back(0.0);
   metal_charge.push_back(0.0);
   birth.push_back(birth_time);
+  carrier.push_back(kAwake);
+  at_rest.push_back(0.0);
 }
 
 namespace {

@@ -38,7 +38,13 @@ struct Particles {
   // s: the time it was added at (a feed's particle: the start of the step
   // that fed it).
   std::vector<double> birth;
+  // Sleep (dynamics/sleep.hpp): the body that carries a sleeping particle,
+  // or kAwake; and how long an awake one has been at rest on a body (s).
+  std::vector<std::int32_t> carrier;
+  std::vector<double> at_rest;
+  static constexpr std::int32_t kAwake = -1;
 
+  bool asleep(std::size_t i) const { return carrier[i] != kAwake; }
   std::size_t size() const { return id.size(); }
   void push(std::uint64_t new_id, int shape_index, double size_scale, int material_index,
             double m, const Vec3& inertia, const Vec3& x, const Quat& q, const Vec3& v,
@@ -55,7 +61,8 @@ inline constexpr auto kParticleArrays = std::tuple{
     &Particles::id,       &Particles::shape,    &Particles::scale,       &Particles::material,
     &Particles::position, &Particles::orientation, &Particles::velocity, &Particles::angular_velocity,
     &Particles::mass,     &Particles::inv_mass, &Particles::inv_inertia, &Particles::force,
-    &Particles::torque,   &Particles::charge,   &Particles::metal_charge, &Particles::birth};
+    &Particles::torque,   &Particles::charge,   &Particles::metal_charge, &Particles::birth,
+    &Particles::carrier,  &Particles::at_rest};
 
 // Machine bodies: the Model's rigid bodies, in the same order.
 struct Bodies {
@@ -64,6 +71,11 @@ struct Bodies {
   std::vector<Vec3> angular_velocity;  // world frame
   std::vector<Vec3> force;             // external, dynamic bodies only
   std::vector<Vec3> torque;
+
+  // The velocity of body k's material point at x.
+  Vec3 velocity_at(std::size_t k, const Vec3& x) const {
+    return velocity[k] + angular_velocity[k].cross(x - pose[k].position);
+  }
 };
 
 // Everything a step reads and writes, but the stages' scratch.
