@@ -320,6 +320,8 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
       // spatial reorder), and the key must stay the same for the warm start
       // and DEM's tangential history.
       auto [i, j] = pairs_[k];
+      // Two sleepers ride their carriers together (dynamics/sleep.hpp).
+      if (p.asleep(std::size_t(i)) && p.asleep(std::size_t(j))) continue;
       if (p.id[std::size_t(i)] > p.id[std::size_t(j)]) std::swap(i, j);
       const auto ui = std::size_t(i), uj = std::size_t(j);
       const ParticleShape& si = model.shapes[std::size_t(p.shape[ui])];
@@ -381,6 +383,7 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
     static thread_local std::vector<geo::SurfaceHit> hits;
     static thread_local std::vector<Candidate> candidates;
     for (std::size_t i = begin; i < end; ++i) {
+      if (p.carrier[i] == body) continue;  // it rides the body (dynamics/sleep.hpp)
       // Cull by the particle's bounding sphere in the body frame.
       const Vec3 local_centre = local(p.position[i]);
       if (!bounds.inflated(reach_[i] + body_travel).overlaps({local_centre, local_centre})) continue;

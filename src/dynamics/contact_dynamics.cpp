@@ -29,6 +29,15 @@ const Contacts kNoContacts;
 // The DEM stability margin: the step against the smallest Rayleigh time.
 constexpr double kRayleighFraction = 0.2;
 
+// A body whose motion the solve's impulses do not change: a static or
+// kinematic body, or a sleeping particle (dynamics/sleep.hpp).
+void prescribed_body(SolverBodies& B, std::size_t i, const Vec3& v, const Vec3& w) {
+  B.v[i] = B.v_free[i] = v;
+  B.w[i] = B.w_free[i] = w;
+  B.inv_mass[i] = 0.0;
+  B.inv_inertia[i].setZero();
+}
+
 }  // namespace
 
 ContactDynamics::ContactDynamics(const Model& model, const Bodies& bodies)
@@ -45,6 +54,10 @@ void ContactDynamics::build_solver_bodies(const Model& m, const State& state) {
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(np); ++s) {
     const auto i = std::size_t(s);
     B.x[i] = p.position[i];
+    if (p.asleep(i)) {
+      prescribed_body(B, i, p.velocity[i], p.angular_velocity[i]);
+      continue;
+    }
     B.v[i] = p.velocity[i];
     B.w[i] = p.angular_velocity[i];
     B.inv_mass[i] = p.inv_mass[i];
@@ -56,10 +69,7 @@ void ContactDynamics::build_solver_bodies(const Model& m, const State& state) {
     const RigidBody& rb = m.bodies[k];
     const std::size_t i = np + k;
     B.x[i] = bodies.pose[k].position;
-    B.v[i] = B.v_free[i] = bodies.velocity[k];
-    B.w[i] = B.w_free[i] = bodies.angular_velocity[k];
-    B.inv_mass[i] = 0.0;
-    B.inv_inertia[i].setZero();
+    prescribed_body(B, i, bodies.velocity[k], bodies.angular_velocity[k]);
     if (rb.kind != BodyKind::Dynamic) continue;
     B.inv_mass[i] = 1.0 / rb.mass;
     B.inv_inertia[i] = world_inverse_inertia(bodies.pose[k].orientation, rb.inertia.cwiseInverse());
@@ -143,6 +153,7 @@ void ContactDynamics::integrate(const Model& model, State& state, const Contacts
     const auto i = std::size_t(s);
     p.velocity[i] = v[i];
     p.angular_velocity[i] = w[i];
+    if (p.asleep(i)) continue;  // its carrier moves it (Sleep::carry)
     p.position[i] += h * v[i];
     p.orientation[i] = advance(p.orientation[i], w[i], h);
   }

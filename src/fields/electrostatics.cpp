@@ -281,6 +281,18 @@ void ElectrostaticsStage::find_touches(const Model& model, const Contacts& c, co
       if (body == drum || body == brush) touch(model, c, k, body == drum, bodies, p);
     }
   });
+  // A particle asleep on the drum (dynamics/sleep.hpp) has no contact with
+  // it listed: it touches it where its nearest sphere does, which is
+  // where its closest contact was.
+  carried_normal_.resize(np);
+  const auto n = std::ptrdiff_t(np);
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < n; ++s) {
+    const auto i = std::size_t(s);
+    if (p.carrier[i] != spec_.drum_body) continue;
+    const DrumGap gap = nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i);
+    carried_normal_[i] = gap.found() ? gap.normal : Vec3::Zero();
+  }
 }
 
 // Contact k of particle c.body_b[k] with the drum or the brush, into its
@@ -357,6 +369,8 @@ Site ElectrostaticsStage::site(const Model& model, const Particles& p, std::size
   const std::int32_t k = drum_contact_[i], kn = near_contact_[i];
   const Vec3* touch = k >= 0 ? &c.normal[std::size_t(k)] : nullptr;
   const Vec3* near = kn >= 0 ? &c.normal[std::size_t(kn)] : nullptr;
+  if (p.carrier[i] == spec_.drum_body && !carried_normal_[i].isZero())
+    touch = near = &carried_normal_[i];
   const ShapeElectrics& shape = shapes_[std::size_t(p.shape[i])];
   const double volume = p.mass[i] / density_[std::size_t(p.material[i])];
   const double area = p.scale[i] * p.scale[i] * shape.face_area;

@@ -191,6 +191,16 @@ struct ContactSettings {
   Manifold manifold = Manifold::Hold;
 };
 
+// Particles carried at rest by a turning body sleep (dynamics/sleep.hpp):
+// a flake pinned to the drum rides it out of the solve until the forces on
+// it, a neighbour's push or another body near it wake it. Off unless the
+// scene's solver.sleep sets it.
+struct SleepSettings {
+  bool enabled = false;
+  double speed = 0.0;  // m/s: slower than this in the body's frame counts as at rest
+  double time = 0.0;   // s: at rest this long on the body, a particle sleeps
+};
+
 // Contact law: DVI (impulses from the cone complementarity problem, the
 // default) or DEM (penalty forces, explicit integration; dynamics/dem.hpp), a
 // baseline for the work-precision comparison. Collision detection is shared.
@@ -231,6 +241,7 @@ struct Model {
   std::vector<Motor> motors;
   SolverSettings solver;
   ContactSettings contact;
+  SleepSettings sleep;
   ContactModel contact_model = ContactModel::DVI;
   DemSettings dem;
   int threads = 0;  // 0: OpenMP default

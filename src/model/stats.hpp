@@ -45,6 +45,7 @@ struct StepStats {
   double time = 0.0;  // at the end of the step
   std::size_t particles = 0;
   std::size_t contacts = 0;
+  std::size_t asleep = 0;  // particles asleep on a body at the end (dynamics/sleep.hpp)
   SolveStats solver;
   double max_penetration = 0.0;           // m, at the start of the step
   double max_penetration_relative = 0.0;  // / radius of the smaller sphere

@@ -63,6 +63,9 @@ void Compiler::read_settings() {
       contact.at("manifold").string() == "four" ? Manifold::Four : Manifold::Hold;
   model_->contact_model =
       contact.at("model").string() == "dem" ? ContactModel::DEM : ContactModel::DVI;
+  if (model_->sleep.enabled && model_->contact_model == ContactModel::DEM)
+    diags_.error(root_.at("solver").at("sleep"),
+                 "sleep needs contact.model dvi: it reads the contact impulses");
   const Node& dem = contact.at("dem");
   model_->dem.defaults = {dem.at("youngs_modulus").number(), dem.at("poisson_ratio").number()};
   model_->dem.min_restitution = dem.at("min_restitution").number();
@@ -80,6 +83,8 @@ void Compiler::read_solver(const Node& s) {
   model_->solver.penetration_tolerance = s.at("penetration_tolerance").number();
   model_->solver.pgs_relaxation = s.at("relaxation").number();
   model_->solver.warm_start = s.at("warm_start").boolean();
+  if (const Node* sleep = s.find("sleep"))
+    model_->sleep = {true, sleep->at("speed").number(), sleep->at("time").number()};
 }
 
 // A unit vector, or nullopt (reported) for a zero vector.

@@ -79,7 +79,7 @@ const StepStats& World::step(StepObserver* observer) {
   stage(Stage::Solve, [&] { dynamics_.solve(m, stats); });
   stage(Stage::Safeguards, [&] { dynamics_.safeguard(m, state_.particles, contacts_, stats); });
   stage(Stage::Integrate, [&] {
-    integrate();
+    integrate(stats);
     stats.time = state_.time;
     stats.particles = state_.particles.size();
     stats.contacts = contacts_.size();
@@ -114,6 +114,7 @@ void World::broadphase() {
   const Model& m = *model_;
   if (m.reorder_interval > 0 && state_.steps % std::uint64_t(m.reorder_interval) == 0)
     spatial_order_.apply(m, state_.particles);
+  if (m.sleep.enabled) sleep_.wake_near_bodies(m, state_.bodies, state_.particles);
   collider_.broadphase(m, state_.particles, state_.bodies);
 }
 
@@ -133,11 +134,18 @@ void World::forces() {
   if (electrostatics_) electrostatics_->apply(*model_, contacts_, b, p);
 }
 
-void World::integrate() {
-  dynamics_.integrate(*model_, state_, contacts_);
-  state_.time += model_->step;
+void World::integrate(StepStats& stats) {
+  const Model& m = *model_;
+  poses_before_ = state_.bodies.pose;
+  dynamics_.integrate(m, state_, contacts_);
+  state_.time += m.step;
   ++state_.steps;
-  set_body_motion(*model_, state_.time, state_.bodies);
+  set_body_motion(m, state_.time, state_.bodies);
+  if (!m.sleep.enabled) return;
+  Sleep::carry(poses_before_, state_.bodies, state_.particles);
+  // The warm-start memory holds this step's impulses in contact order.
+  stats.asleep = sleep_.update(m, state_.bodies, contacts_, state_.impulses.values(),
+                               state_.particles);
 }
 
 void World::collect() {

@@ -5,16 +5,18 @@
 //   stage        reads                                  writes
 //   feed         time, particles, body poses            new particles
 //   broadphase   particle positions, velocities,        particle order (every
-//                forces (last step's), shapes           reorder_interval steps),
-//                                                       candidate pairs
+//                forces (last step's), shapes, body     reorder_interval steps),
+//                poses                                  sleepers woken near a
+//                                                       body, candidate pairs
 //   narrowphase  candidate pairs, particles, bodies      contacts
 //   forces       contacts, particles, body motion       particle forces, charges
 //   assemble     particles, bodies, contacts, forces,   the step's problem,
 //                the warm-start memory                  penetration statistics
 //   solve        the problem                            impulses
 //   safeguards   impulses, contacts, particle shapes    impulses, velocities
-//   integrate    velocities                             particle and body motion,
-//                                                       time, warm-start memory
+//   integrate    velocities, contacts, impulses,        particle and body motion,
+//                forces                                 time, warm-start memory,
+//                                                       who sleeps
 //   collect      particle positions and velocities      removes collected and lost
 //                                                       particles, their records
 //   output       everything                             nothing (observers)
@@ -33,6 +35,7 @@
 #include "collision/contacts.hpp"
 #include "collision/spatial_order.hpp"
 #include "dynamics/contact_dynamics.hpp"
+#include "dynamics/sleep.hpp"
 #include "feed/feeder.hpp"
 #include "fields/drag.hpp"
 #include "fields/electrostatics.hpp"
@@ -107,7 +110,7 @@ class World {
   void broadphase();
   void narrowphase();
   void forces();
-  void integrate();
+  void integrate(StepStats& stats);
   void collect();
 
   std::shared_ptr<const Model> model_;
@@ -120,6 +123,8 @@ class World {
   std::optional<fields::DragStage> drag_;
   std::optional<fields::ElectrostaticsStage> electrostatics_;
   ContactDynamics dynamics_;
+  Sleep sleep_;
+  std::vector<Pose> poses_before_;  // the bodies' at the start of integrate
   std::optional<collect::Collection> collection_;
   StepStats stats_;
 };
