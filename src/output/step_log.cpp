@@ -22,7 +22,7 @@ StepLog::StepLog(const std::filesystem::path& steps_csv, int max_iterations, Sta
   if (steps_csv.empty() || start == Start::Resume) return;
   file_ = AppendFile(steps_csv);
   file_.write(
-      "step,time_s,particles,contacts,iterations,residual_mps,max_penetration_m,"
+      "step,time_s,particles,contacts,asleep,iterations,residual_mps,max_penetration_m,"
       "max_penetration_rel,wall_s\n");
 }
 
@@ -55,12 +55,14 @@ void StepLog::record(const StepStats& s) {
   if (s.step_above_rayleigh_limit) ++sum_.steps_above_rayleigh_limit;
   sum_.max_particles = std::max(sum_.max_particles, s.particles);
   sum_.max_contacts = std::max(sum_.max_contacts, s.contacts);
+  sum_.max_asleep = std::max(sum_.max_asleep, s.asleep);
   sum_.seconds += s.seconds;
   if (!file_.is_open()) return;
   std::string text;
   CsvWriter row(text);
-  row << s.step << s.time << s.particles << s.contacts << s.solver.iterations << s.solver.residual
-      << s.max_penetration << s.max_penetration_relative << s.seconds.total();
+  row << s.step << s.time << s.particles << s.contacts << s.asleep << s.solver.iterations
+      << s.solver.residual << s.max_penetration << s.max_penetration_relative
+      << s.seconds.total();
   row.end_row();
   file_.write(text);
 }

@@ -43,6 +43,7 @@ struct SolverSummary {
   std::uint64_t steps_above_rayleigh_limit = 0;
   std::size_t max_particles = 0;
   std::size_t max_contacts = 0;
+  std::size_t max_asleep = 0;
   StageTimes seconds;  // summed over steps
 };
 

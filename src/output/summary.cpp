@@ -112,7 +112,8 @@ Json solver_json(const RunRecord& r) {
           {"spin_limited", s.spin_limited},
           {"joint_drift_max_m", s.max_joint_drift},
           {"particles_max", s.max_particles},
-          {"contacts_max", s.max_contacts}};
+          {"contacts_max", s.max_contacts},
+          {"asleep_max", s.max_asleep}};
 }
 
 // A value that only some runs have: "n/a" for the others.
@@ -122,8 +123,12 @@ Json contact_json(const RunRecord& r) {
   const bool dem = r.sim->model->contact_model == ContactModel::DEM;
   const double rayleigh = r.solver.rayleigh_time_min;
   const bool four = r.sim->model->contact.manifold == Manifold::Four;
+  const SleepSettings& sleep = r.sim->model->sleep;
+  const Json sleep_json = sleep.enabled ? Json{{"speed_mps", sleep.speed}, {"time_s", sleep.time}}
+                                        : Json("off");
   return {{"model", dem ? "dem" : "dvi"},
           {"manifold", four ? "four" : "hold"},
+          {"sleep", sleep_json},
           {"rayleigh_time_min_s", value_or_na(dem && std::isfinite(rayleigh), rayleigh)},
           {"steps_above_rayleigh_limit", r.solver.steps_above_rayleigh_limit}};
 }
