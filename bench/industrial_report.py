@@ -61,7 +61,8 @@ def describe(name, title):
     print(f"simulated {s['simulated_time_s']:g} s in {s['steps']} steps; wall {s['wall_time_s']['total']:.1f} s "
           f"(the run loop), {s['wall_time_s']['total'] / max(s['simulated_time_s'], 1e-12):.0f} s per simulated second; "
           f"threads {s['threads']}")
-    print(f"particles at most {solver['particles_max']}, contacts at most {solver['contacts_max']}; "
+    print(f"particles at most {solver['particles_max']} ({solver['asleep_max']} asleep at most), "
+          f"contacts at most {solver['contacts_max']}; "
           f"fed {s['balance']['fed']['count']} ({s['balance']['fed']['mass_kg'] * 1e3:.1f} g), "
           f"collected {s['balance']['collected']['count']}, balance exact: {s['balance']['exact']}")
     print(f"solver: {solver['iterations_mean']:.1f} iterations per step on average (cap {solver['max_iterations']}), "
