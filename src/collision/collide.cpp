@@ -18,11 +18,6 @@ double smallest_radius(const ParticleShape& s) {
   return *std::min_element(s.radii.begin(), s.radii.end());
 }
 
-// Particle i's bounding radius, at its scale.
-double bounding_radius(const Model& model, const Particles& p, std::size_t i) {
-  return model.shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i];
-}
-
 // What gravity and the forces change particle i's velocity by within the
 // step (the forces are this step's after the collision: the last step's
 // stand in for them, still in p.force).

@@ -24,7 +24,7 @@ void SpatialOrder::apply(const Model& model, Particles& particles) {
   double reach = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     lo = lo.cwiseMin(p.position[i]);
-    reach = std::max(reach, model.shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i]);
+    reach = std::max(reach, bounding_radius(model, p, i));
   }
   // Cells of a particle diameter: a cell's particles touch each other.
   const double cell = reach > 0.0 ? 2.0 * reach : 1.0;

@@ -22,10 +22,6 @@ constexpr double kPushUnit = 1e-21;
 constexpr double kPushCap = 1e-4;
 constexpr std::int32_t kNone = -1, kSeveral = -2;
 
-double bounding_radius(const Model& model, const Particles& p, std::size_t i) {
-  return model.shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i];
-}
-
 void wake(Particles& p, std::size_t i) {
   p.carrier[i] = Particles::kAwake;
   p.at_rest[i] = 0.0;

@@ -56,6 +56,11 @@ struct Particles {
   void permute(const std::vector<std::uint32_t>& order, Particles& scratch);
 };
 
+// Particle i's bounding radius (about its centre of mass), at its scale.
+inline double bounding_radius(const Model& model, const Particles& p, std::size_t i) {
+  return model.shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i];
+}
+
 // Every per-particle array, listed once for the operations on all of them.
 inline constexpr auto kParticleArrays = std::tuple{
     &Particles::id,       &Particles::shape,    &Particles::scale,       &Particles::material,
