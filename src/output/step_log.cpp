@@ -23,7 +23,7 @@ StepLog::StepLog(const std::filesystem::path& steps_csv, int max_iterations, Sta
   file_ = AppendFile(steps_csv);
   file_.write(
       "step,time_s,particles,contacts,asleep,iterations,residual_mps,max_penetration_m,"
-      "max_penetration_rel,wall_s\n");
+      "max_penetration_rel,max_wall_penetration_rel,wall_s\n");
 }
 
 void StepLog::record(const StepStats& s) {
@@ -62,7 +62,7 @@ void StepLog::record(const StepStats& s) {
   CsvWriter row(text);
   row << s.step << s.time << s.particles << s.contacts << s.asleep << s.solver.iterations
       << s.solver.residual << s.max_penetration << s.max_penetration_relative
-      << s.seconds.total();
+      << s.max_wall_penetration_relative << s.seconds.total();
   row.end_row();
   file_.write(text);
 }
