@@ -122,10 +122,12 @@ bool can_carry(const Model& model, const Bodies& bodies, std::size_t k) {
   return model.bodies[k].kind != BodyKind::Dynamic && bodies.velocity[k] == Vec3::Zero();
 }
 
-void Sleep::wake_near_bodies(const Model& model, const Bodies& bodies, Particles& p) const {
+void Sleep::wake_near_bodies(const Model& model, const Bodies& bodies, Particles& p) {
   const std::size_t nb = model.bodies.size();
-  std::vector<geo::Aabb> bounds(nb);
-  for (std::size_t b = 0; b < nb; ++b) bounds[b] = geo::local_bounds(model.bodies[b].shape);
+  if (bounds_.size() != nb) {  // the model's bodies are fixed: once per run
+    bounds_.resize(nb);
+    for (std::size_t b = 0; b < nb; ++b) bounds_[b] = geo::local_bounds(model.bodies[b].shape);
+  }
   const auto n = std::ptrdiff_t(p.size());
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
   for (std::ptrdiff_t s = 0; s < n; ++s) {
@@ -146,7 +148,7 @@ void Sleep::wake_near_bodies(const Model& model, const Bodies& bodies, Particles
       const double reach = 2.0 * bounding_radius(model, p, i) +
                            (ride + bodies.velocity_at(b, x).norm()) * model.step;
       const Vec3 local = bodies.pose[b].inverse_apply(x);
-      if (!bounds[b].inflated(reach).overlaps({local, local})) continue;
+      if (!bounds_[b].inflated(reach).overlaps({local, local})) continue;
       hits.clear();
       geo::query(model.bodies[b].shape, local, reach, hits);
       if (hits.empty()) continue;
@@ -193,8 +195,8 @@ void Sleep::read_contacts(const Contacts& c, const std::vector<Vec3>& impulses,
 }
 
 // Whether the force body k must give particle i to carry it on its circle,
-// R = m (a - g) - F - P (P: its neighbours' pushes this step), presses it on the surface with the
-// tangential part T within kReserve of friction, and whether the normal
+// R = m (a - g) - F - P (P: its neighbours' pushes this step), presses it
+// on the surface with the tangential part T within kReserve of friction, and whether the normal
 // force can balance T's torque about the centre (T times the centre's
 // height) within kReserve of the most it can: N times the reach of the
 // bearing spheres along T. A sphere has no reach: it rolls.
@@ -207,7 +209,7 @@ bool Sleep::held(const Model& model, const Bodies& bodies, const Particles& p, s
   const Vec3 centripetal = w.cross(w.cross(p.position[i] - bodies.pose[k].position));
   const auto& units = push_[i];
   const Vec3 push = Vec3(double(units[0]), double(units[1]), double(units[2])) * kPushUnit;
-  const Vec3 force = p.mass[i] * (centripetal - model.gravity) - p.force[i] - push / step_;
+  const Vec3 force = p.mass[i] * (centripetal - model.gravity) - p.force[i] - push / model.step;
   const double normal = force.dot(n);
   const Vec3 along = force - normal * n;
   const double tangent = along.norm();
@@ -222,7 +224,6 @@ bool Sleep::held(const Model& model, const Bodies& bodies, const Particles& p, s
 
 std::size_t Sleep::update(const Model& model, const Bodies& bodies, const Contacts& contacts,
                           const std::vector<Vec3>& impulses, Particles& p) {
-  step_ = model.step;
   read_contacts(contacts, impulses, p.size());
   std::size_t asleep = 0;
   const auto n = std::ptrdiff_t(p.size());

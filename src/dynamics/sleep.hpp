@@ -40,7 +40,7 @@ class Sleep {
  public:
   // Start of a step: wakes the sleepers within reach of a body other than
   // their carrier, before the contacts are found.
-  void wake_near_bodies(const Model& model, const Bodies& bodies, Particles& p) const;
+  void wake_near_bodies(const Model& model, const Bodies& bodies, Particles& p);
   // End of a step: moves the sleepers with their carriers, from the
   // bodies' poses `before` to their current ones, at their velocity there.
   static void carry(const std::vector<Pose>& before, const Bodies& bodies, Particles& p);
@@ -61,7 +61,7 @@ class Sleep {
   // (kPushUnit) so that the sum is the same in any order.
   std::vector<std::int32_t> pressed_by_;
   std::vector<std::array<std::int64_t, 3>> push_;
-  double step_ = 0.0;
+  std::vector<geo::Aabb> bounds_;  // per body: its shape's local bounds
 };
 
 // Whether particles may sleep on body k this step: it is not dynamic and

@@ -136,7 +136,7 @@ void World::forces() {
 
 void World::integrate(StepStats& stats) {
   const Model& m = *model_;
-  poses_before_ = state_.bodies.pose;
+  if (m.sleep.enabled) poses_before_ = state_.bodies.pose;
   dynamics_.integrate(m, state_, contacts_);
   state_.time += m.step;
   ++state_.steps;
