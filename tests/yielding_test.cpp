@@ -29,6 +29,7 @@ struct Bench {
   double gravity = 9.81;  // m/s^2, along -y
   double step = 1e-3;
   SolverMethod method = SolverMethod::APGD;
+  double ceiling = std::numeric_limits<double>::infinity();  // m: a rigid plane facing down
 };
 
 // A sphere of 1 mm on a plane of material "bristles", the plane the
@@ -43,6 +44,10 @@ std::unique_ptr<World> sphere_on_plane(const Bench& s, const Vec3& position, con
                                {});
   m->shapes.push_back(make_particle_shape({Vec3::Zero()}, {1.0}));
   m->bodies.push_back(test::ground_plane(Vec3::UnitY(), 1));
+  if (std::isfinite(s.ceiling)) {
+    m->bodies.push_back(test::ground_plane(-Vec3::UnitY(), 0));
+    m->bodies.back().pose.position = Vec3(0, s.ceiling, 0);
+  }
   m->solver.method = s.method;
   m->solver.max_iterations = 100000;
   m->solver.tolerance = 1e-10;
@@ -114,6 +119,31 @@ TEST(Yielding, DampingGivesThePairsRestitution) {
     for (const double e : {0.3, 0.7}) EXPECT_NEAR(rebound(e, method), e, 0.1 * e) << e;
     EXPECT_NEAR(rebound(0.0, method), std::exp(-2.0), 0.1 * std::exp(-2.0));
   }
+}
+
+// A sphere pressed 0.8 radii into stiff bristles (1000 N/m), without
+// gravity, under a rigid ceiling 0.3 radii above it: farther than its
+// envelope at rest (a quarter of its radius), so the ceiling is not among
+// the first step's contacts. The bristles throw it at their depth over
+// h + c/k (the soft row's bias; c/k = 0.2 ms here), 0.66 mm in the step,
+// which would take it 0.36 radii into the ceiling. It stops at the
+// ceiling's surface (dynamics/unlisted_walls.hpp), within the overlap aim,
+// and stays there, pressed on it by the bristles.
+TEST(Yielding, ThrownAtAWallPastItsEnvelopeStopsAtItsSurface) {
+  Bench s;
+  s.plane_stiffness = 1000.0;
+  s.gravity = 0.0;
+  const double depth = 0.8 * kRadius;
+  s.ceiling = 2.0 * kRadius - depth + 0.3 * kRadius;
+  auto w = sphere_on_plane(s, Vec3(0, kRadius - depth, 0), Vec3::Zero());
+  const StepStats& first = w->step();
+  EXPECT_EQ(first.unlisted_wall_stops, 1u);
+  double worst = 0.0;
+  for (int i = 0; i < 100; ++i) worst = std::max(worst, w->step().max_wall_penetration_relative);
+  const double aim = w->model().solver.overlap_aim();
+  EXPECT_LE(worst, aim * (1.0 + 1e-6));
+  EXPECT_NEAR(w->particles().position[0].y(), s.ceiling - kRadius, aim * kRadius);
+  EXPECT_LT(w->particles().velocity[0].norm(), 1e-3);
 }
 
 // The reference machine's nip: grains carried up between the drum and a

@@ -1,6 +1,7 @@
 // Collision detection: particles against particles and against machine
 // bodies, in two stages (broadphase, narrowphase).
 #pragma once
+#include <span>
 #include <vector>
 
 #include "collision/broadphase.hpp"
@@ -22,6 +23,9 @@ class Collider {
   // contacts by (body, particle, sphere, feature). After broadphase().
   void narrowphase(const Model& model, const Particles& particles, const Bodies& bodies,
                    Contacts& out);
+  // Each particle's envelope this step (m): its contacts with bodies were
+  // listed as far as its spheres' surfaces plus it. After narrowphase().
+  std::span<const double> envelopes() const { return envelope_; }
 
  private:
   void struck_by_body(const Model& model, const Particles& p, const Bodies& bodies, int body);

@@ -6,6 +6,7 @@
 #include "common/parallel.hpp"
 #include "dynamics/safeguards.hpp"
 #include "dynamics/solvers.hpp"
+#include "dynamics/unlisted_walls.hpp"
 
 namespace ces {
 namespace {
@@ -131,12 +132,15 @@ void ContactDynamics::solve(const Model& m, StepStats& stats) {
   stats.solver = ces::solve(problem_, m.solver, gamma_, workspace_);
 }
 
-void ContactDynamics::safeguard(const Model& m, const Particles& particles,
-                                const Contacts& contacts, StepStats& stats) {
+void ContactDynamics::safeguard(const Model& m, const State& state, const Contacts& contacts,
+                                std::span<const double> envelope, StepStats& stats) {
   // The velocities of the impulses, which the safeguards change with them.
   problem_.velocities(gamma_, solver_bodies_.v, solver_bodies_.w);
   if (m.contact_model == ContactModel::DEM) return;
-  apply_safeguards(m, particles, contacts, problem_, safeguards_, gamma_, solver_bodies_, stats);
+  const Particles& p = state.particles;
+  apply_safeguards(m, p, contacts, problem_, safeguards_, gamma_, solver_bodies_, stats);
+  stats.unlisted_wall_stops =
+      stop_at_unlisted_walls(m, p, state.bodies, envelope, solver_bodies_);
 }
 
 void ContactDynamics::integrate(const Model& model, State& state, const Contacts& contacts) {

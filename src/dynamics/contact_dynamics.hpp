@@ -6,12 +6,15 @@
 //   safeguards what a solve stopped at its cap must not do (create energy,
 //              leave a particle in a wall), the relaxed cone's sliding lift
 //              on walls, and the spin of clumps (dynamics/safeguards.hpp);
+//              then the walls a particle would cross beyond its envelope,
+//              where no contact was listed (dynamics/unlisted_walls.hpp);
 //   integrate  semi-implicit Euler from the new velocities, and the impulses
 //              remembered for the next step's warm start.
 // Under ContactModel::DEM, assemble also applies the penalty contact forces
 // (dynamics/dem.hpp) and the problem keeps only the joints' rows.
 #pragma once
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "collision/contacts.hpp"
@@ -34,8 +37,9 @@ class ContactDynamics {
   // step's penetration and joint drift into stats.
   void assemble(const Model& model, State& state, const Contacts& contacts, StepStats& stats);
   void solve(const Model& model, StepStats& stats);
-  void safeguard(const Model& model, const Particles& particles, const Contacts& contacts,
-                 StepStats& stats);
+  // envelope: each particle's, within which its contacts were listed.
+  void safeguard(const Model& model, const State& state, const Contacts& contacts,
+                 std::span<const double> envelope, StepStats& stats);
   // Writes the particles' and dynamic bodies' motion, and the warm start.
   void integrate(const Model& model, State& state, const Contacts& contacts);
 

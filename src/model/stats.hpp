@@ -73,6 +73,9 @@ struct StepStats {
   std::size_t sliding_releases = 0;
   // Clumps in contact whose spin was limited.
   std::size_t spin_limited = 0;
+  // Particles stopped at a wall their step would have crossed beyond the
+  // envelope their contacts were listed within (dynamics/unlisted_walls.hpp).
+  std::size_t unlisted_wall_stops = 0;
   // DEM only: the smallest particle's Rayleigh time (s; 0 under DVI), and
   // whether the step exceeds 20 % of it (explicit contact is then unreliable).
   double rayleigh_time = 0.0;

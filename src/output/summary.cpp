@@ -110,6 +110,7 @@ Json solver_json(const RunRecord& r) {
           {"wall_guard_bodies_unfinished", s.walls_unfinished},
           {"sliding_releases", s.sliding_releases},
           {"spin_limited", s.spin_limited},
+          {"unlisted_wall_stops", s.unlisted_wall_stops},
           {"joint_drift_max_m", s.max_joint_drift},
           {"particles_max", s.max_particles},
           {"contacts_max", s.max_contacts},
