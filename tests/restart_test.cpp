@@ -1,5 +1,6 @@
 // Runs that survive: a run killed with SIGKILL at a random moment and
-// resumed from its checkpoint writes the bytes the uninterrupted run writes;
+// resumed from its checkpoint writes the bytes the uninterrupted run writes,
+// and so does one whose particles sleep on a plate;
 // a run that does not finish never touches an earlier complete run; a run
 // that completes removes only the files the earlier run wrote; a file that
 // cannot be written is named in summary.json.
@@ -34,21 +35,28 @@ const std::string kTiny = std::string(CES_TEST_DIR) + "/scenes/tiny.yaml";
 // as flakes and a wheel turning clear of the flow beside its ramp, so that
 // the frames hold every kind of file: particles, spheres, the static and the
 // moving machine.
-const std::vector<std::string> kLongerRun = {
-    "--set", "time.end=2.5 s", "--set", "feeds.hopper.duration=2 s", "--set",
-    "output.checkpoint.every=0.1 s", "--set", "feeds.hopper.mix.0.shape=flake", "--set",
-    "bodies=[{name: ramp, geometry: {box: {size: [0.1, 0.01, 0.04]}}, "
-    "pose: {rotation: {axis: [0, 0, 1], angle: -30 deg}}, material: steel}, "
-    "{name: wheel, geometry: {cylinder: {radius: 0.02, length: 0.04}}, "
-    "pose: {position: [0.25, 0.15, 0]}, material: steel, "
-    "motion: {rotation: {axis: [0, 0, 1], center: [0.25, 0.15, 0], speed: 60 rpm}}}]",
-    "--quiet"};
+// With `plate`, the ramp lies flat and the particles that come to rest on
+// it fall asleep (solver.sleep; a few hundred of them), carried by it.
+std::vector<std::string> longer_run(bool plate = false) {
+  const std::string tilt = plate ? "" : "pose: {rotation: {axis: [0, 0, 1], angle: -30 deg}}, ";
+  std::vector<std::string> args = {
+      "--set", "time.end=2.5 s", "--set", "feeds.hopper.duration=2 s", "--set",
+      "output.checkpoint.every=0.1 s", "--set", "feeds.hopper.mix.0.shape=flake", "--set",
+      "bodies=[{name: ramp, geometry: {box: {size: [0.1, 0.01, 0.04]}}, " + tilt +
+          "material: steel}, "
+          "{name: wheel, geometry: {cylinder: {radius: 0.02, length: 0.04}}, "
+          "pose: {position: [0.25, 0.15, 0]}, material: steel, "
+          "motion: {rotation: {axis: [0, 0, 1], center: [0.25, 0.15, 0], speed: 60 rpm}}}]",
+      "--quiet"};
+  if (plate) args.insert(args.end(), {"--set", "solver.sleep={speed: 5 mm/s, time: 20 ms}"});
+  return args;
+}
 
-pid_t start_run(const fs::path& dir) {
+pid_t start_run(const fs::path& dir, const std::vector<std::string>& run = longer_run()) {
   const pid_t pid = ::fork();
   if (pid != 0) return pid;
   std::vector<std::string> args = {kBinary, kTiny, "-o", dir.string()};
-  args.insert(args.end(), kLongerRun.begin(), kLongerRun.end());
+  args.insert(args.end(), run.begin(), run.end());
   std::vector<char*> argv;
   for (std::string& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -63,8 +71,9 @@ void wait_for(const fs::path& file) {
 }
 
 // Kills the run `delay` after its first checkpoint; false if it ended first.
-bool kill_after_first_checkpoint(const fs::path& dir, std::chrono::milliseconds delay) {
-  const pid_t pid = start_run(dir);
+bool kill_after_first_checkpoint(const fs::path& dir, std::chrono::milliseconds delay,
+                                 const std::vector<std::string>& run = longer_run()) {
+  const pid_t pid = start_run(dir, run);
   wait_for(dir / "partial" / "checkpoint.bin");
   std::this_thread::sleep_for(delay);
   ::kill(pid, SIGKILL);
@@ -73,9 +82,9 @@ bool kill_after_first_checkpoint(const fs::path& dir, std::chrono::milliseconds 
   return WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
 }
 
-std::string run_args(const fs::path& dir) {
+std::string run_args(const fs::path& dir, const std::vector<std::string>& run) {
   std::string args = kTiny + " -o " + dir.string();
-  for (const std::string& a : kLongerRun) args += " " + (a.find(' ') != std::string::npos ? "'" + a + "'" : a);
+  for (const std::string& a : run) args += " " + (a.find(' ') != std::string::npos ? "'" + a + "'" : a);
   return args;
 }
 
@@ -85,9 +94,11 @@ const char* const kResults[] = {"bins.csv",         "products.csv",     "crossin
                                 "lost.csv",         "trajectories.csv", "trajectories.pvd",
                                 "scene.resolved.yaml"};
 
-TEST(Restart, KilledAtARandomMomentResumesToTheSameBytes) {
-  const fs::path whole = fresh_dir("whole"), killed = fresh_dir("killed");
-  const Outcome ref = ces_sim(run_args(whole));
+// The run, whole in `whole`, and in `killed` killed at a random moment
+// after its first checkpoint then resumed.
+void expect_resumed_bytes(const fs::path& whole, const fs::path& killed,
+                          const std::vector<std::string>& run) {
+  const Outcome ref = ces_sim(run_args(whole, run));
   ASSERT_EQ(ref.code, 0) << ref.err;
   std::random_device entropy;
   const unsigned seed = entropy();
@@ -95,7 +106,7 @@ TEST(Restart, KilledAtARandomMomentResumesToTheSameBytes) {
   const auto delay = std::chrono::milliseconds(std::uniform_int_distribution<int>(0, 600)(rng));
   SCOPED_TRACE("kill " + std::to_string(delay.count()) + " ms after the first checkpoint (seed " +
                std::to_string(seed) + ")");
-  ASSERT_TRUE(kill_after_first_checkpoint(killed, delay)) << "the run ended before the kill";
+  ASSERT_TRUE(kill_after_first_checkpoint(killed, delay, run)) << "the run ended before the kill";
   EXPECT_FALSE(fs::exists(killed / "bins.csv")) << "an unfinished run publishes nothing";
   const nlohmann::json partial = nlohmann::json::parse(read_text(killed / "partial" / "summary.json"));
   EXPECT_FALSE(partial["complete"].get<bool>());
@@ -118,6 +129,19 @@ TEST(Restart, KilledAtARandomMomentResumesToTheSameBytes) {
   EXPECT_EQ(test::report_data(whole / "report.html")["frames"],
             test::report_data(killed / "report.html")["frames"]);
   EXPECT_FALSE(fs::exists(killed / "partial"));
+}
+
+TEST(Restart, KilledAtARandomMomentResumesToTheSameBytes) {
+  expect_resumed_bytes(fresh_dir("whole"), fresh_dir("killed"), longer_run());
+}
+
+// Sleepers carry state a checkpoint must keep: their carrier and how long
+// they have been at rest.
+TEST(Restart, ARunWithSleepersResumesToTheSameBytes) {
+  const fs::path whole = fresh_dir("plate_whole");
+  expect_resumed_bytes(whole, fresh_dir("plate_killed"), longer_run(true));
+  const nlohmann::json summary = nlohmann::json::parse(read_text(whole / "summary.json"));
+  EXPECT_GT(summary["solver"]["asleep_max"].get<int>(), 100);
 }
 
 TEST(Restart, AnUnfinishedRunLeavesTheEarlierCompleteRunIntact) {
