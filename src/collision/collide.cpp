@@ -38,11 +38,16 @@ Vec3 safe_direction(const Vec3& d, double len) {
   return len > 0.0 ? Vec3(d / len) : Vec3::UnitY();
 }
 
-// A candidate contact of two spheres closer than the envelope.
+// A candidate contact of two spheres closer than the envelope. Most sphere
+// pairs of two flakes are far apart: they are passed over on the squared
+// distance, with a margin far above its rounding, before the square root
+// decides the rest.
 void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double envelope,
                    const ContactKey& key, std::vector<Candidate>& out) {
   const Vec3 d = cb - ca;
-  const double len = d.norm();
+  const double squared = d.squaredNorm(), reach = ra + rb + envelope;
+  if (squared > reach * reach * (1.0 + 1e-9)) return;
+  const double len = std::sqrt(squared);
   const double gap = len - ra - rb;
   if (gap >= envelope) return;
   const Vec3 n = safe_direction(d, len);
