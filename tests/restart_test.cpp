@@ -84,7 +84,8 @@ bool kill_after_first_checkpoint(const fs::path& dir, std::chrono::milliseconds 
 
 std::string run_args(const fs::path& dir, const std::vector<std::string>& run) {
   std::string args = kTiny + " -o " + dir.string();
-  for (const std::string& a : run) args += " " + (a.find(' ') != std::string::npos ? "'" + a + "'" : a);
+  for (const std::string& a : run)
+    args += " " + (a.find(' ') != std::string::npos ? "'" + a + "'" : a);
   return args;
 }
 
