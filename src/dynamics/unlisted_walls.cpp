@@ -35,14 +35,17 @@ Crossing deepest_crossing(const Model& m, const Particles& p, const Bodies& bodi
   const Mat3 R = p.orientation[i].toRotationMatrix() * p.scale[i];
   const double h = m.step, aim = m.solver.overlap_aim();
   const Vec3 centre_end = p.position[i] + h * v;
+  const double reach = bounding_radius(m, p, i) * (1.0 + h * w.norm());
   Crossing worst;
   for (std::size_t k = 0; k < m.bodies.size(); ++k) {
     if (!is_wall(m, bodies, k, p, i)) continue;
     const geo::Shape& surface = m.bodies[k].shape;
     const Pose& pose = bodies.pose[k];
-    // One query of the centre passes over a wall that no sphere reaches.
+    // One query of the centre passes over a wall that no sphere reaches:
+    // turning by h |w| moves a sphere's centre off the centre's by at most
+    // that times its arm.
     hits.clear();
-    geo::query(surface, pose.inverse_apply(centre_end), bounding_radius(m, p, i), hits);
+    geo::query(surface, pose.inverse_apply(centre_end), reach, hits);
     if (hits.empty()) continue;
     for (std::size_t s = 0; s < shape.centers.size(); ++s) {
       const Vec3 arm = R * shape.centers[s];
