@@ -118,10 +118,6 @@ double reach_along(const Support& s, const Vec3& t) {
 
 }  // namespace
 
-bool can_carry(const Model& model, const Bodies& bodies, std::size_t k) {
-  return model.bodies[k].kind != BodyKind::Dynamic && bodies.velocity[k] == Vec3::Zero();
-}
-
 void Sleep::wake_near_bodies(const Model& model, const Bodies& bodies, Particles& p) {
   const std::size_t nb = model.bodies.size();
   if (bounds_.size() != nb) {  // the model's bodies are fixed: once per run
@@ -134,7 +130,7 @@ void Sleep::wake_near_bodies(const Model& model, const Bodies& bodies, Particles
     const auto i = std::size_t(s);
     if (!p.asleep(i)) continue;
     const auto carrier = std::size_t(p.carrier[i]);
-    if (!can_carry(model, bodies, carrier)) {
+    if (!turns_in_place(model, bodies, carrier)) {
       wake(p, i);
       continue;
     }
@@ -196,10 +192,10 @@ void Sleep::read_contacts(const Contacts& c, const std::vector<Vec3>& impulses,
 
 // Whether the force body k must give particle i to carry it on its circle,
 // R = m (a - g) - F - P (P: its neighbours' pushes this step), presses it
-// on the surface with the tangential part T within kReserve of friction, and whether the normal
-// force can balance T's torque about the centre (T times the centre's
-// height) within kReserve of the most it can: N times the reach of the
-// bearing spheres along T. A sphere has no reach: it rolls.
+// on the surface with the tangential part T within kReserve of friction,
+// and whether the normal force can balance T's torque about the centre (T
+// times the centre's height) within kReserve of the most it can: N times
+// the reach of the bearing spheres along T. A sphere has no reach: it rolls.
 bool Sleep::held(const Model& model, const Bodies& bodies, const Particles& p, std::size_t i,
                  std::size_t k) const {
   static thread_local Support support;
@@ -238,7 +234,7 @@ std::size_t Sleep::update(const Model& model, const Bodies& bodies, const Contac
       continue;
     }
     const std::int32_t k = pressed_by_[i];
-    if (k < 0 || !can_carry(model, bodies, std::size_t(k)) ||
+    if (k < 0 || !turns_in_place(model, bodies, std::size_t(k)) ||
         !at_rest(model, bodies, p, i, std::size_t(k)) ||
         !held(model, bodies, p, i, std::size_t(k))) {
       p.at_rest[i] = 0.0;

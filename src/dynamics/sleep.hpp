@@ -64,8 +64,4 @@ class Sleep {
   std::vector<geo::Aabb> bounds_;  // per body: its shape's local bounds
 };
 
-// Whether particles may sleep on body k this step: it is not dynamic and
-// does not translate, so its surface's velocity is its turn's alone.
-bool can_carry(const Model& model, const Bodies& bodies, std::size_t k);
-
 }  // namespace ces

@@ -11,14 +11,12 @@ namespace {
 // second wall (a corner) takes another.
 constexpr int kPasses = 4;
 
-// Whether body k is a wall for particle i all step long: not moved by the
-// solve, its surface where its pose puts it (it does not translate; a
-// drum turns in place), and it does not yield to the particle.
+// Whether body k is a wall for particle i all step long: its surface where
+// its pose puts it, and not yielding to the particle.
 bool is_wall(const Model& m, const Bodies& bodies, std::size_t k, const Particles& p,
              std::size_t i) {
-  const RigidBody& body = m.bodies[k];
-  if (body.kind == BodyKind::Dynamic || bodies.velocity[k] != Vec3::Zero()) return false;
-  return m.materials.pair(body.material, p.material[i]).compliance == 0.0;
+  return turns_in_place(m, bodies, k) &&
+         m.materials.pair(m.bodies[k].material, p.material[i]).compliance == 0.0;
 }
 
 // The deepest one of particle i's spheres ends past a wall's surface, beyond

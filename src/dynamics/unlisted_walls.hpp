@@ -5,7 +5,7 @@
 // farther: a brush's compressed bristles throw a light flake, or push a
 // chain of them, through a gap no faster than it pressed them in, so
 // toward a wall beyond its envelope, whose surface it would cross
-// unopposed (a flake in the reference nip went 1.9 radii into the drum).
+// unopposed.
 // Such a particle is stopped at the wall: its velocity loses what would
 // carry its deepest sphere past the overlap aim, as a wall contact with no
 // restitution would have taken it, friction aside. The next step lists

@@ -83,6 +83,13 @@ struct Bodies {
   }
 };
 
+// Whether body k's surface moves by its turn alone this step: the solve
+// does not move it (it is not dynamic) and it does not translate. Particles
+// sleep on such a body, and it holds them as a wall all step where it was.
+inline bool turns_in_place(const Model& model, const Bodies& bodies, std::size_t k) {
+  return model.bodies[k].kind != BodyKind::Dynamic && bodies.velocity[k] == Vec3::Zero();
+}
+
 // Everything a step reads and writes, but the stages' scratch.
 struct State {
   Particles particles;
