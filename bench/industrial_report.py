@@ -52,6 +52,18 @@ def step_seconds(s):
     return sum(v for k, v in stages.items() if k != "output")
 
 
+def step_rows(name):
+    """A run's steps.csv, each row a dict by column name, values as text."""
+    lines = (out / name / "steps.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    return [dict(zip(head, line.split(","))) for line in lines[1:]]
+
+
+def contact_iterations(rows):
+    """The solve's work over these steps: each contact in each iteration."""
+    return sum(float(r["contacts"]) * float(r["iterations"]) for r in rows)
+
+
 def describe(name, title):
     s = summary(name)
     solver, stages = s["solver"], s["wall_time_s"]["stages"]
@@ -69,6 +81,9 @@ def describe(name, title):
           f"{solver['steps_at_iteration_cap']} of {solver['steps_solved']} steps at the cap; residual median "
           f"{solver['residual_median_mps']:.2g} m/s, 95th percentile {solver['residual_p95_mps']:.2g}, "
           f"max {solver['residual_max_mps']:.2g}")
+    work = contact_iterations(step_rows(name))
+    print(f"solve: {work:.3g} contact-iterations (a contact in one iteration) in {stages['solve']:.1f} s, "
+          f"{work / stages['solve'] / s['threads'] / 1e6:.1f} M per second per thread")
     print(f"overlap: worst {solver['max_penetration_m'] * 1e3:.3f} mm, {solver['max_penetration_relative']:.2f} of the "
           f"smaller radius; against walls {solver['max_wall_penetration_relative']:.2f}")
     print(f"peak resident set: {peak_rss_bytes(name) / 2**20:.0f} MiB\n")
@@ -109,13 +124,6 @@ print(f"Command: bash bench/industrial.sh {end} {short}\n")
 full = describe("full", f"Scene to {end} s on {cores} threads")
 
 
-def step_rows(name):
-    """A run's steps.csv, each row a dict by column name, values as text."""
-    lines = (out / name / "steps.csv").read_text().splitlines()
-    head = lines[0].split(",")
-    return [dict(zip(head, line.split(","))) for line in lines[1:]]
-
-
 def late_pace(name, s):
     """The run's pace over its last tenth, from steps.csv: the machine fills
     for as long as its particles stay in it (flight, and the FR-4 carried
@@ -128,7 +136,14 @@ def late_pace(name, s):
     print(f"over the last tenth, from {float(late[0]['time_s']):g} s: {seconds:.0f} s per simulated "
           f"second, {late[-1]['particles']} particles and {late[-1]['contacts']} contacts at the end; "
           f"at that pace the scene's {scene_end:g} s (its time.end) take "
-          f"{scene_end * seconds / 3600:.1f} h\n")
+          f"{scene_end * seconds / 3600:.1f} h")
+    # What the solve alone needs at that point, at the run's own rate: a
+    # floor on the pace that no other stage's speed-up lowers.
+    work = contact_iterations(late) / (len(late) * s["step_s"])
+    stages = s["wall_time_s"]["stages"]
+    rate = contact_iterations(rows) / stages["solve"]
+    print(f"over the last tenth the solve has {work:.3g} contact-iterations per simulated second: at the "
+          f"run's rate, {work / rate:.0f} s per simulated second for the solve alone\n")
 
 
 late_pace("full", full)
