@@ -186,7 +186,9 @@ TEST(Sleep, ASleeperWakesBeforeItReachesAnotherBody) {
     slept = slept || w.particles().asleep(0);
     const Contacts& c = w.contacts();
     for (std::size_t k = 0; k < c.size(); ++k) touched = touched || c.body_a[k] == plate_index;
-    if (touched) EXPECT_FALSE(w.particles().asleep(0));
+    if (touched) {
+      EXPECT_FALSE(w.particles().asleep(0));
+    }
   }
   EXPECT_TRUE(slept);
   EXPECT_TRUE(touched);
@@ -221,7 +223,9 @@ TEST(Sleep, ASleepingCopperFlakeKeepsTheChargeItsTouchInduces) {
       w.step();
       slept = slept || w.particles().asleep(0);
     }
-    if (sleep) EXPECT_TRUE(w.particles().asleep(0));
+    if (sleep) {
+      EXPECT_TRUE(w.particles().asleep(0));
+    }
     charge[sleep] = w.particles().charge[0];
   }
   EXPECT_TRUE(slept);
