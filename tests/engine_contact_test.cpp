@@ -13,6 +13,7 @@
 namespace ces {
 namespace {
 
+using test::add_raft_shape;
 using test::base_model;
 using test::g0;
 
@@ -107,18 +108,6 @@ TEST(Engine, RaftOnInclineSlidesWithCoulombAcceleration) {
 // kept and hold it level. In the corner of an L-shaped mesh the wall's contacts,
 // with another normal, are reduced on their own. 500 steps of 1 ms: the raft
 // stays level within 1e-3 rad and sinks less than 1 % of r.
-// Adds a square raft of (2 half + 1)^2 unit spheres `spacing` radii apart
-// to m's shapes; returns the turn that lays it flat with its face up (+y).
-Quat add_raft_shape(Model& m, int half, double spacing) {
-  std::vector<Vec3> centres;
-  for (int i = -half; i <= half; ++i)
-    for (int k = -half; k <= half; ++k) centres.emplace_back(spacing * i, 0.0, spacing * k);
-  m.shapes.push_back(make_particle_shape(centres, std::vector<double>(centres.size(), 1.0)));
-  Eigen::Index normal_axis;
-  m.shapes.back().unit_inertia.maxCoeff(&normal_axis);
-  return Quat::FromTwoVectors(Vec3::Unit(normal_axis), Vec3::UnitY());
-}
-
 std::unique_ptr<World> raft_on(std::shared_ptr<Model> m, double r) {
   const Quat flat = add_raft_shape(*m, 2, 2.0);
   auto w = std::make_unique<World>(m);

@@ -21,4 +21,14 @@ std::shared_ptr<Model> base_model(std::vector<double> frictions, double step) {
   return m;
 }
 
+Quat add_raft_shape(Model& m, int half, double spacing) {
+  std::vector<Vec3> centres;
+  for (int i = -half; i <= half; ++i)
+    for (int k = -half; k <= half; ++k) centres.emplace_back(spacing * i, 0.0, spacing * k);
+  m.shapes.push_back(make_particle_shape(centres, std::vector<double>(centres.size(), 1.0)));
+  Eigen::Index normal_axis;
+  m.shapes.back().unit_inertia.maxCoeff(&normal_axis);
+  return Quat::FromTwoVectors(Vec3::Unit(normal_axis), Vec3::UnitY());
+}
+
 }  // namespace ces::test

@@ -21,6 +21,10 @@ std::string material_name(std::size_t i);
 // and the given solver settings.
 std::shared_ptr<Model> base_model(std::vector<double> frictions = {0.5}, double step = 1e-3);
 
+// Adds a square raft of (2 half + 1)^2 unit spheres `spacing` radii apart
+// to m's shapes; returns the turn that lays it flat with its face up (+y).
+Quat add_raft_shape(Model& m, int half, double spacing);
+
 // Uniform numbers in [-1, 1) from a 64-bit LCG: the same on every platform.
 struct Uniform {
   std::uint64_t state;
