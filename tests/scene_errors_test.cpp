@@ -45,6 +45,9 @@ const Expected kExpectations[] = {
      "materials.rubber.poisson_ratio: 0.5 is out of range, expected < 0.5"},
     {"dem_unknown_model.yaml", "dem_unknown_model.yaml", 3,
      "contact.model: got 'dme', expected one of dvi or dem (did you mean 'dem'?)"},
+    {"flat_faces_under_dem.yaml", "flat_faces_under_dem.yaml", 3,
+     "contact.flake_faces: flake_faces flat needs contact.model dvi: dem's forces are sphere on "
+     "sphere"},
     {"sleep_under_dem.yaml", "sleep_under_dem.yaml", 5,
      "solver.sleep: sleep needs contact.model dvi: it reads the contact impulses"},
     {"sleep_without_time.yaml", "sleep_without_time.yaml", 4,

@@ -468,6 +468,7 @@ TEST(SeparatorScene, IndustrialMachineIsFedHalfATonneAnHourAcrossItsMetre) {
                                {"output.trajectories", "{every: 0.1 s, format: csv}"}});
   ASSERT_TRUE(sim.electrostatics);
   EXPECT_EQ(sim.model->contact.manifold, Manifold::Four);
+  EXPECT_TRUE(sim.model->contact.flat_faces);
   EXPECT_TRUE(sim.model->sleep.enabled);
   EXPECT_EQ(sim.electrostatics->drum.half_width, 0.5);
   for (const RigidBody& b : sim.model->bodies) {
@@ -481,6 +482,7 @@ TEST(SeparatorScene, IndustrialMachineIsFedHalfATonneAnHourAcrossItsMetre) {
   const fs::path dir = run_scene(sim, "industrial");
   const auto summary = nlohmann::json::parse(read_text(dir / "summary.json"));
   EXPECT_EQ(summary["contact"]["manifold"], "four");
+  EXPECT_EQ(summary["contact"]["flake_faces"], "flat");
   EXPECT_EQ(summary["contact"]["sleep"]["speed_mps"], 5e-3);
   const auto& balance = summary["balance"];
   EXPECT_TRUE(balance["exact"].get<bool>());

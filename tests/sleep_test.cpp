@@ -276,7 +276,7 @@ struct RainedFlakes {
   std::size_t most_asleep = 0, woke = 0;
 };
 
-RainedFlakes rained_flakes(int threads) {
+RainedFlakes rained_flakes(int threads, bool flat_faces = false) {
   omp_set_num_threads(threads);
   const double h = 0.5e-3, omega = 3.0, width = 2e-3;
   auto m = make_model(h, {{kFr4, kFriction, ElectricalMaterial::insulator(kFr4Permittivity)}},
@@ -287,6 +287,7 @@ RainedFlakes rained_flakes(int threads) {
   m->shapes.push_back(make_particle_shape(f.centers, f.radii));
   m->bodies.push_back(drum(omega));
   m->sleep = kSleep;
+  m->contact.flat_faces = flat_faces;
   World w(m);
   const Quat flat = Quat::FromTwoVectors(shape_electrics(m->shapes.back()).face_normal,
                                          Vec3::UnitY());
@@ -331,6 +332,17 @@ TEST(Sleep, FlakesOnTheDrumSleepAndWakeToTheSameBitsOnAnyThreads) {
   EXPECT_EQ(one.most_asleep, two.most_asleep);
   ASSERT_EQ(one.state.size(), two.state.size());
   EXPECT_EQ(0, std::memcmp(one.state.data(), two.state.data(), one.state.size() * sizeof(double)));
+}
+
+// The same with the flakes as plates (contact.flake_faces flat), which
+// meet each other face on face and rim on rim.
+TEST(Sleep, FlatFacedFlakesGiveTheSameBitsOnAnyThreads) {
+  const RainedFlakes one = rained_flakes(1, true), two = rained_flakes(2, true);
+  EXPECT_GT(one.most_asleep, 60u);
+  EXPECT_EQ(one.most_asleep, two.most_asleep);
+  ASSERT_EQ(one.state.size(), two.state.size());
+  EXPECT_EQ(0, std::memcmp(one.state.data(), two.state.data(), one.state.size() * sizeof(double)));
+  EXPECT_NE(one.state, rained_flakes(1).state);  // the plates are what met
 }
 
 }  // namespace

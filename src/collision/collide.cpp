@@ -54,6 +54,106 @@ void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double 
   out.push_back({n, ca + n * (ra + 0.5 * gap), gap, std::min(ra, rb), key});
 }
 
+// A flake's plate this step (FlatFace): its mid-plane's unit normal, its
+// in-plane axes and its origin in the world, and its spheres' centres.
+// Inactive for a shape that is not flat, or where the scene keeps sphere
+// on sphere.
+struct Plate {
+  const FlatFace* face = nullptr;
+  const Vec3* centres = nullptr;  // the flake's spheres in the world
+  Vec3 normal, x_axis, y_axis, origin, position;
+  double scale = 1.0, radius = 0.0, reach = 0.0;
+
+  Plate(const ParticleShape& s, const Quat& orientation, const Vec3& position, double scale,
+        const Vec3* centres, bool enabled) {
+    if (!enabled || !s.face.flat()) return;
+    const Mat3 R = orientation.toRotationMatrix();
+    face = &s.face;
+    this->centres = centres;
+    normal = R * s.face.normal;
+    x_axis = R * s.face.x_axis;
+    y_axis = R * s.face.y_axis;
+    origin = position + scale * (R * s.face.origin);
+    this->position = position;
+    this->scale = scale;
+    radius = scale * s.radii[0];
+    reach = scale * s.bounding_radius;
+  }
+  bool active() const { return face != nullptr; }
+  // Whether a point is over the face (its projection in the hull), and
+  // then its height above the mid-plane (signed along the normal).
+  bool over(const Vec3& c, double& height) const {
+    const Vec3 d = c - origin;
+    if (!face->covers(d.dot(x_axis) / scale, d.dot(y_axis) / scale)) return false;
+    height = d.dot(normal);
+    return true;
+  }
+  // The point of the hull's edges nearest c (the first of equals).
+  Vec3 nearest_on_rim(const Vec3& c) const {
+    const std::vector<std::uint32_t>& k = face->corners;
+    Vec3 best = centres[k[0]];
+    double least = std::numeric_limits<double>::infinity();
+    for (std::size_t e = 0; e < k.size(); ++e) {
+      const Vec3& a = centres[k[e]];
+      const Vec3 edge = centres[k[(e + 1) % k.size()]] - a;
+      const double t = std::clamp((c - a).dot(edge) / edge.squaredNorm(), 0.0, 1.0);
+      const Vec3 q = a + t * edge;
+      const double squared = (c - q).squaredNorm();
+      if (squared < least) {
+        least = squared;
+        best = q;
+      }
+    }
+    return best;
+  }
+};
+
+// A candidate contact of a sphere (c, r) with a plate, its point nearest c
+// being q: over the face, q is c's foot on the mid-plane; beside it, on
+// the rim. The sphere is the pair's A side or its B side; the normal
+// points from A to B.
+void sphere_plate(const Vec3& c, double r, const Vec3& q, const Vec3& up_hint, const Plate& plate,
+                  bool sphere_is_a, double envelope, const ContactKey& key,
+                  std::vector<Candidate>& out) {
+  const Vec3 d = c - q;
+  const double len = d.norm(), gap = len - r - plate.radius;
+  if (gap >= envelope) return;
+  const Vec3 up = len > 0.0 ? Vec3(d / len) : up_hint;  // from the plate to c
+  const Vec3 n = sphere_is_a ? Vec3(-up) : up;
+  out.push_back({n, c - up * (r + 0.5 * gap), gap, std::min(r, plate.radius), key});
+}
+
+// The candidate contacts of one particle's spheres with another's plate.
+// A sphere over the face meets the face; one beside it meets the rim,
+// unless the particle is itself a plate and the sphere is not one of its
+// hull's corners: between two plates' rims the nearest points are at a
+// corner of one of them. `a_side`: the spheres are the pair's A side.
+void spheres_on_plate(const Vec3* centres, const ParticleShape& s, double scale,
+                      const Plate& plate, bool corners_only, bool a_side, ContactKey key,
+                      double envelope, std::vector<Candidate>& out) {
+  static thread_local std::vector<std::uint8_t> corner;
+  corner.assign(s.centers.size(), !corners_only);
+  if (corners_only)
+    for (std::uint32_t k : s.face.corners) corner[k] = 1;
+  std::uint32_t& own = a_side ? key.feature_a : key.feature_b;
+  std::uint32_t& other = a_side ? key.feature_b : key.feature_a;
+  for (std::size_t k = 0; k < s.centers.size(); ++k) {
+    const Vec3& c = centres[k];
+    const double r = scale * s.radii[k], far = plate.reach + r + envelope;
+    if ((c - plate.position).squaredNorm() > far * far) continue;
+    own = std::uint32_t(k);
+    double height;
+    if (plate.over(c, height)) {
+      other = kPlateFeature;
+      const Vec3 up = height < 0.0 ? Vec3(-plate.normal) : plate.normal;
+      sphere_plate(c, r, c - height * plate.normal, up, plate, a_side, envelope, key, out);
+    } else if (corner[k]) {
+      other = kRimFeature;
+      sphere_plate(c, r, plate.nearest_on_rim(c), plate.normal, plate, a_side, envelope, key, out);
+    }
+  }
+}
+
 // The envelope of a particle at rest: a fraction of its smallest sphere's
 // radius.
 double resting_envelope(const Model& model, const Particles& p, std::size_t i) {
@@ -324,26 +424,9 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
       if (p.asleep(std::size_t(i)) && p.asleep(std::size_t(j))) continue;
       if (p.id[std::size_t(i)] > p.id[std::size_t(j)]) std::swap(i, j);
       const auto ui = std::size_t(i), uj = std::size_t(j);
-      const ParticleShape& si = model.shapes[std::size_t(p.shape[ui])];
-      const ParticleShape& sj = model.shapes[std::size_t(p.shape[uj])];
       const std::uint32_t surfaces = mat.pair_index(p.material[ui], p.material[uj]);
-      const double envelope = envelope_[ui] + envelope_[uj];
-      const double sci = p.scale[ui], scj = p.scale[uj];
       candidates.clear();
-      const Vec3* centre_i = &sphere_centre_[sphere_first_[ui]];
-      const Vec3* centre_j = &sphere_centre_[sphere_first_[uj]];
-      const double reach_j = sj.bounding_radius * scj + envelope;
-      for (std::size_t a = 0; a < si.centers.size(); ++a) {
-        const Vec3& ca = centre_i[a];
-        // Skip a sphere of i that cannot reach any sphere of j.
-        const double far = reach_j + sci * si.radii[a];
-        if ((ca - p.position[uj]).squaredNorm() > far * far) continue;
-        for (std::size_t b = 0; b < sj.centers.size(); ++b) {
-          const Vec3& cb = centre_j[b];
-          const ContactKey key{p.id[ui], p.id[uj], std::uint32_t(a), std::uint32_t(b)};
-          sphere_sphere(ca, sci * si.radii[a], cb, scj * sj.radii[b], envelope, key, candidates);
-        }
-      }
+      pair_candidates(model, p, ui, uj, envelope_[ui] + envelope_[uj], candidates);
       const PairMotion motion{p.position[ui], p.velocity[ui], p.angular_velocity[ui],
                               p.position[uj], p.velocity[uj], p.angular_velocity[uj],
                               h,              change_[ui],   change_[uj]};
@@ -352,6 +435,80 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
       reduce_manifold(candidates, i, j, surfaces, motion, rule, part);
     }
   });
+}
+
+// Two plates' rims where they cross (two flakes edge on edge): the rows
+// between edges of each whose nearest points are inside both. Elsewhere
+// the nearest points of two rims are at a corner of one (spheres_on_plate),
+// and so are those of parallel edges.
+void rims_crossing(const Plate& a, const Plate& b, ContactKey key, double envelope,
+                   std::vector<Candidate>& out) {
+  const std::vector<std::uint32_t>& ka = a.face->corners;
+  const std::vector<std::uint32_t>& kb = b.face->corners;
+  const double far = a.reach + b.reach + envelope;
+  if ((a.position - b.position).squaredNorm() > far * far) return;
+  for (std::size_t i = 0; i < ka.size(); ++i) {
+    const Vec3& p = a.centres[ka[i]];
+    const Vec3 d1 = a.centres[ka[(i + 1) % ka.size()]] - p;
+    for (std::size_t j = 0; j < kb.size(); ++j) {
+      const Vec3& q = b.centres[kb[j]];
+      const Vec3 d2 = b.centres[kb[(j + 1) % kb.size()]] - q;
+      // The lines' nearest points (Ericson, Real-Time Collision Detection,
+      // 5.1.9), kept only where both are inside their edges.
+      const Vec3 r = p - q;
+      const double aa = d1.squaredNorm(), e = d2.squaredNorm(), bb = d1.dot(d2);
+      const double denom = aa * e - bb * bb;
+      if (!(denom > 1e-6 * aa * e)) continue;  // parallel, or nearly
+      const double s = (bb * d2.dot(r) - e * d1.dot(r)) / denom;
+      const double t = (aa * d2.dot(r) - bb * d1.dot(r)) / denom;
+      if (!(s > 0.0 && s < 1.0 && t > 0.0 && t < 1.0)) continue;
+      const Vec3 c1 = p + s * d1, c2 = q + t * d2, d = c2 - c1;
+      const double len = d.norm(), gap = len - a.radius - b.radius;
+      if (gap >= envelope) continue;
+      const Vec3 n = len > 0.0 ? Vec3(d / len) : a.normal;
+      key.feature_a = kEdgeFeature | std::uint32_t(i);
+      key.feature_b = kEdgeFeature | std::uint32_t(j);
+      out.push_back({n, c1 + n * (a.radius + 0.5 * gap), gap, std::min(a.radius, b.radius), key});
+    }
+  }
+}
+
+void Collider::pair_candidates(const Model& model, const Particles& p, std::size_t i,
+                               std::size_t j, double envelope,
+                               std::vector<Candidate>& candidates) const {
+  const ParticleShape& si = model.shapes[std::size_t(p.shape[i])];
+  const ParticleShape& sj = model.shapes[std::size_t(p.shape[j])];
+  const double sci = p.scale[i], scj = p.scale[j];
+  const Vec3* centre_i = &sphere_centre_[sphere_first_[i]];
+  const Vec3* centre_j = &sphere_centre_[sphere_first_[j]];
+  const bool flat = model.contact.flat_faces;
+  const Plate plate_i(si, p.orientation[i], p.position[i], sci, centre_i, flat);
+  const Plate plate_j(sj, p.orientation[j], p.position[j], scj, centre_j, flat);
+  if (plate_i.active() || plate_j.active()) {
+    // A plate meets the other's spheres, or both plates each other's.
+    const ContactKey key{p.id[i], p.id[j], 0, 0};
+    if (plate_j.active())
+      spheres_on_plate(centre_i, si, sci, plate_j, plate_i.active(), true, key, envelope,
+                       candidates);
+    if (plate_i.active())
+      spheres_on_plate(centre_j, sj, scj, plate_i, plate_j.active(), false, key, envelope,
+                       candidates);
+    if (plate_i.active() && plate_j.active())
+      rims_crossing(plate_i, plate_j, key, envelope, candidates);
+    return;
+  }
+  const double reach_j = sj.bounding_radius * scj + envelope;
+  for (std::size_t a = 0; a < si.centers.size(); ++a) {
+    const Vec3& ca = centre_i[a];
+    const double ra = sci * si.radii[a];
+    // Skip a sphere of i that cannot reach any sphere of j.
+    const double far = reach_j + ra;
+    if ((ca - p.position[j]).squaredNorm() > far * far) continue;
+    for (std::size_t b = 0; b < sj.centers.size(); ++b) {
+      const ContactKey key{p.id[i], p.id[j], std::uint32_t(a), std::uint32_t(b)};
+      sphere_sphere(ca, ra, centre_j[b], scj * sj.radii[b], envelope, key, candidates);
+    }
+  }
 }
 
 void Collider::body_contacts(const Model& model, const Particles& p, const Bodies& bodies,

@@ -32,6 +32,10 @@ class Collider {
   void struck_by_neighbours(const Model& model, const Particles& p);
   void speed_changes(const Model& model, const Particles& p);
   void particle_pairs(const Model& model, const Particles& p, Contacts& out);
+  // The candidate contacts of particles i and j (by id, i first): sphere
+  // on sphere, or a sphere on a flake's plate where the scene asks for it.
+  void pair_candidates(const Model& model, const Particles& p, std::size_t i, std::size_t j,
+                       double envelope, std::vector<Candidate>& candidates) const;
   void body_contacts(const Model& model, const Particles& p, const Bodies& bodies, int body,
                      Contacts& out);
 

@@ -290,6 +290,10 @@ void keep_unheld(const std::vector<Candidate>& c, const Vec3& n_g, const Hull& h
   }
 }
 
+bool on_face(const Candidate& c) {
+  return c.key.feature_a == kPlateFeature || c.key.feature_b == kPlateFeature;
+}
+
 }  // namespace
 
 void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
@@ -313,11 +317,17 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
   // A candidate joins the first group (in the order they were opened) whose
   // first member's normal is close to its own, or opens one. Most join the
   // first: a flake on the drum makes one group, a pair of flakes two or three.
+  // A plate's face (contact.flake_faces flat) makes a group of its own: its
+  // rows have gaps affine over it, so its corners hold it, which a rim's
+  // row with a normal near the face's would not.
   leader.clear();
   for (std::size_t i = 0; i < n; ++i) {
     const Vec3& ni = c[i].normal;
+    const bool face = on_face(c[i]);
     std::size_t g = 0;
-    while (g < leader.size() && ni.dot(c[leader[g]].normal) <= kSameNormal) ++g;
+    while (g < leader.size() &&
+           (on_face(c[leader[g]]) != face || ni.dot(c[leader[g]].normal) <= kSameNormal))
+      ++g;
     if (g == leader.size()) leader.push_back(i);
     group[i] = int(g);
   }

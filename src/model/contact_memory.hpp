@@ -14,13 +14,18 @@ namespace ces {
 
 // Persistent identity of a contact: the two objects (particle ids, or
 // kBodyTag | body index for machine bodies) and the feature on each (the
-// sphere of a cluster, the face/edge/vertex of a mesh).
+// sphere of a cluster; its plate's face or rim as kPlateFeature or
+// kRimFeature, or its hull's edge k as kEdgeFeature | k; the
+// face/edge/vertex of a mesh).
 struct ContactKey {
   std::uint64_t a = 0, b = 0;
   std::uint32_t feature_a = 0, feature_b = 0;
   auto operator<=>(const ContactKey&) const = default;
 };
 inline constexpr std::uint64_t kBodyTag = std::uint64_t{1} << 63;
+inline constexpr std::uint32_t kPlateFeature = 0xFFFFFFFFu;
+inline constexpr std::uint32_t kRimFeature = 0xFFFFFFFEu;
+inline constexpr std::uint32_t kEdgeFeature = 0x80000000u;
 
 // A vector per contact, kept from one step to the next and found by key:
 // the warm start's impulses, DEM's tangential springs. Lookups try the

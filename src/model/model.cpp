@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <stdexcept>
+#include <tuple>
 
 namespace ces {
 
@@ -186,7 +187,83 @@ Mat3 canonical_axes(Mat3 axes) {
   return axes;
 }
 
+// Twice the signed area of (o, a, b): positive where a to b turns left.
+double turn(const std::array<double, 2>& o, const std::array<double, 2>& a,
+            const std::array<double, 2>& b) {
+  return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+}
+
+// A sphere's centre in a plane's coordinates.
+struct Corner {
+  std::array<double, 2> at;
+  std::uint32_t sphere;
+};
+
+// The plate of spheres of one radius centred in one plane (a centre off
+// it by more than rounding, or two radii, and the shape is not flat). The
+// plane is fitted to the centres, not taken from the principal axes: those
+// of overlapping spheres come from a numerical integration. The hull by
+// Andrew's monotone chain, points on an edge left out.
+FlatFace flat_face(const ParticleShape& s) {
+  FlatFace face;
+  if (s.centers.size() < 3) return face;
+  for (double r : s.radii)
+    if (std::abs(r - s.radii[0]) > 1e-12 * s.radii[0]) return face;
+  Vec3 origin = Vec3::Zero();
+  for (const Vec3& c : s.centers) origin += c;
+  origin /= double(s.centers.size());
+  Mat3 spread = Mat3::Zero();
+  for (const Vec3& c : s.centers) spread += (c - origin) * (c - origin).transpose();
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(spread);
+  const Vec3 normal = eig.eigenvectors().col(0), x_axis = eig.eigenvectors().col(2);
+  const Vec3 y_axis = normal.cross(x_axis);
+  const double thin = 1e-9 * s.bounding_radius;
+  std::vector<Corner> points;
+  for (std::size_t k = 0; k < s.centers.size(); ++k) {
+    const Vec3 d = s.centers[k] - origin;
+    if (std::abs(d.dot(normal)) > thin) return face;
+    points.push_back({{d.dot(x_axis), d.dot(y_axis)}, std::uint32_t(k)});
+  }
+  std::sort(points.begin(), points.end(), [](const Corner& a, const Corner& b) {
+    return std::tie(a.at, a.sphere) < std::tie(b.at, b.sphere);
+  });
+  std::vector<Corner> hull(2 * points.size());
+  std::size_t top = 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    const std::size_t floor = top;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const Corner& q = points[pass == 0 ? i : points.size() - 1 - i];
+      while (top >= floor + 2 &&
+             !(turn(hull[top - 2].at, hull[top - 1].at, q.at) > thin * s.bounding_radius))
+        --top;
+      hull[top++] = q;
+    }
+    --top;  // each chain's last point starts the next
+  }
+  if (top < 3) return face;  // centres in a line: a rod, not a plate
+  face.normal = normal;
+  face.x_axis = x_axis;
+  face.y_axis = y_axis;
+  face.origin = origin;
+  for (std::size_t i = 0; i < top; ++i) {
+    face.hull.push_back(hull[i].at);
+    face.corners.push_back(hull[i].sphere);
+  }
+  return face;
+}
+
 }  // namespace
+
+bool FlatFace::covers(double x, double y) const {
+  for (std::size_t i = 0; i < hull.size(); ++i) {
+    const auto& a = hull[i];
+    const auto& b = hull[(i + 1) % hull.size()];
+    const double ex = b[0] - a[0], ey = b[1] - a[1];
+    // The cross product is the edge's length times the distance from it.
+    if (ex * (y - a[1]) - ey * (x - a[0]) < -1e-9 * (ex * ex + ey * ey)) return false;
+  }
+  return true;
+}
 
 ParticleShape make_particle_shape(const std::vector<Vec3>& centers, const std::vector<double>& radii,
                                   Pose* frame) {
@@ -218,6 +295,7 @@ ParticleShape make_particle_shape(const std::vector<Vec3>& centers, const std::v
     s.radii.push_back(radii[i]);
     s.bounding_radius = std::max(s.bounding_radius, s.centers.back().norm() + radii[i]);
   }
+  s.face = flat_face(s);
   if (frame) *frame = Pose{com, Quat(axes)};
   return s;
 }

@@ -1,6 +1,7 @@
 // The compiled, immutable description of a simulation: what a scene compiler
 // builds and the stepper reads. Nothing here knows about YAML or files.
 #pragma once
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -72,12 +73,30 @@ class MaterialTable {
 // A rigid particle: one sphere or a rigid cluster of (possibly overlapping)
 // spheres. Sphere centres are given in the principal frame with the centre
 // of mass at the origin, so the inertia tensor is diagonal.
+// A cluster of spheres of one radius whose centres lie in one plane (a
+// flake) is a plate of that thickness: the hull of its centres swept by the
+// sphere. Another particle's sphere over the hull meets the plate's face,
+// one beside it the plate's rim (contact.flake_faces flat,
+// collision/collide.cpp).
+struct FlatFace {
+  // In the shape's frame: the plane's unit normal, two unit axes in it
+  // (x, y, normal right-handed) and its origin, the centres' mean.
+  Vec3 normal = Vec3::Zero(), x_axis = Vec3::Zero(), y_axis = Vec3::Zero(), origin = Vec3::Zero();
+  // The centres' convex hull in (x, y), counter-clockwise; empty: not flat.
+  std::vector<std::array<double, 2>> hull;
+  std::vector<std::uint32_t> corners;  // the sphere at each corner of the hull
+  bool flat() const { return !hull.empty(); }
+  // Whether (x, y) is in the hull or on it (to a billionth of an edge).
+  bool covers(double x, double y) const;
+};
+
 struct ParticleShape {
   std::vector<Vec3> centers;
   std::vector<double> radii;
   double volume = 0.0;
   Vec3 unit_inertia = Vec3::Zero();  // principal inertia / mass (m^2)
   double bounding_radius = 0.0;       // about the centre of mass
+  FlatFace face;
   bool is_sphere() const { return centers.size() == 1; }
 };
 
@@ -189,6 +208,11 @@ struct ContactSettings {
   double recovery_speed = defaults::kRecoverySpeed;  // m/s: cap on the speed of pushing out overlaps
   double restitution_threshold = defaults::kRestitutionThreshold;  // m/s: slower impacts are plastic
   Manifold manifold = Manifold::Hold;
+  // A sphere over a flake's face meets the plate (FlatFace), not the
+  // flake's spheres: flakes stack at their thickness, not nested in each
+  // other's hollows, and one face's contacts share its normal, so that
+  // four of them hold it.
+  bool flat_faces = false;
 };
 
 // Particles carried at rest by a turning body sleep (dynamics/sleep.hpp):

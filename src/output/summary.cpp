@@ -129,6 +129,7 @@ Json contact_json(const RunRecord& r) {
                                         : Json("off");
   return {{"model", dem ? "dem" : "dvi"},
           {"manifold", four ? "four" : "hold"},
+          {"flake_faces", r.sim->model->contact.flat_faces ? "flat" : "spheres"},
           {"sleep", sleep_json},
           {"rayleigh_time_min_s", value_or_na(dem && std::isfinite(rayleigh), rayleigh)},
           {"steps_above_rayleigh_limit", r.solver.steps_above_rayleigh_limit}};

@@ -63,6 +63,10 @@ void Compiler::read_settings() {
       contact.at("manifold").string() == "four" ? Manifold::Four : Manifold::Hold;
   model_->contact_model =
       contact.at("model").string() == "dem" ? ContactModel::DEM : ContactModel::DVI;
+  model_->contact.flat_faces = contact.at("flake_faces").string() == "flat";
+  if (model_->contact.flat_faces && model_->contact_model == ContactModel::DEM)
+    diags_.error(contact.at("flake_faces"),
+                 "flake_faces flat needs contact.model dvi: dem's forces are sphere on sphere");
   if (model_->sleep.enabled && model_->contact_model == ContactModel::DEM)
     diags_.error(root_.at("solver").at("sleep"),
                  "sleep needs contact.model dvi: it reads the contact impulses");
