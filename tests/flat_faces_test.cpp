@@ -188,7 +188,9 @@ TEST(FlatFace, AGrainMeetsTheFaceOverItAndTheRimBesideIt) {
     for (std::size_t k : beside) {
       const double sphere_gap = (std::sqrt(2.05 * 2.05 + 1.0) - 2.0) * r;
       EXPECT_NEAR(w.contacts().gap[k], flat ? 0.05 * r : sphere_gap, 1e-9);
-      if (flat) EXPECT_NEAR(w.contacts().normal[k].x(), 1.0, 1e-9);  // from the raft (A) out
+      if (flat) {
+        EXPECT_NEAR(w.contacts().normal[k].x(), 1.0, 1e-9);  // from the raft (A) out
+      }
     }
   }
 }
