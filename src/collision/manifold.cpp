@@ -6,6 +6,8 @@
 #include <span>
 #include <utility>
 
+#include "common/hull.hpp"
+
 namespace ces {
 namespace {
 
@@ -160,16 +162,10 @@ Hull hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> m
     order[i] = {x.dot(u), x.dot(v), members[i]};
   }
   sort_planar(order, order + m, m, counts);
-  // Lower hull left to right, then upper hull right to left.
-  std::size_t top = 0;
-  for (int pass = 0; pass < 2; ++pass) {
-    const std::size_t floor = top;
-    for (std::size_t i = 0; i < m; ++i) {
-      const Planar& p = order[pass == 0 ? i : m - 1 - i];
-      while (top >= floor + 2 && !(cross(chain[top - 2], chain[top - 1], p) > 0.0)) --top;
-      chain[top++] = p;
-    }
-  }
+  const std::size_t top = monotone_chain(order, m, chain, [](const Planar& o, const Planar& a,
+                                                             const Planar& b) {
+    return cross(o, a, b) > 0.0;
+  });
   for (std::size_t i = 0; i < top; ++i) keep[chain[i].k] = 1;
   return {order, m, chain, top};
 }

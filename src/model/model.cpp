@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <tuple>
 
+#include "common/hull.hpp"
+
 namespace ces {
 
 MaterialTable::MaterialTable(std::vector<Material> materials, const std::vector<MaterialPair>& pairs)
@@ -202,8 +204,8 @@ struct Corner {
 // The plate of spheres of one radius centred in one plane (a centre off
 // it by more than rounding, or two radii, and the shape is not flat). The
 // plane is fitted to the centres, not taken from the principal axes: those
-// of overlapping spheres come from a numerical integration. The hull by
-// Andrew's monotone chain, points on an edge left out.
+// of overlapping spheres come from a numerical integration. Points on an
+// edge of the hull are not its corners.
 FlatFace flat_face(const ParticleShape& s) {
   FlatFace face;
   if (s.centers.size() < 3) return face;
@@ -227,28 +229,26 @@ FlatFace flat_face(const ParticleShape& s) {
   std::sort(points.begin(), points.end(), [](const Corner& a, const Corner& b) {
     return std::tie(a.at, a.sphere) < std::tie(b.at, b.sphere);
   });
-  std::vector<Corner> hull(2 * points.size());
-  std::size_t top = 0;
-  for (int pass = 0; pass < 2; ++pass) {
-    const std::size_t floor = top;
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      const Corner& q = points[pass == 0 ? i : points.size() - 1 - i];
-      while (top >= floor + 2 &&
-             !(turn(hull[top - 2].at, hull[top - 1].at, q.at) > thin * s.bounding_radius))
-        --top;
-      hull[top++] = q;
-    }
-    --top;  // each chain's last point starts the next
+  std::vector<Corner> chain(2 * points.size());
+  const double least_turn = thin * s.bounding_radius;
+  const std::size_t top = monotone_chain(
+      points.data(), points.size(), chain.data(), [&](const Corner& o, const Corner& a,
+                                                      const Corner& b) {
+        return turn(o.at, a.at, b.at) > least_turn;
+      });
+  // The chains' ends appear twice: each corner once, counter-clockwise.
+  for (std::size_t i = 0; i < top; ++i) {
+    const bool repeated = (i > 0 && chain[i].sphere == chain[i - 1].sphere) ||
+                          (i + 1 == top && chain[i].sphere == chain[0].sphere);
+    if (repeated) continue;
+    face.hull.push_back(chain[i].at);
+    face.corners.push_back(chain[i].sphere);
   }
-  if (top < 3) return face;  // centres in a line: a rod, not a plate
+  if (face.hull.size() < 3) return FlatFace{};  // centres in a line: a rod, not a plate
   face.normal = normal;
   face.x_axis = x_axis;
   face.y_axis = y_axis;
   face.origin = origin;
-  for (std::size_t i = 0; i < top; ++i) {
-    face.hull.push_back(hull[i].at);
-    face.corners.push_back(hull[i].sphere);
-  }
   return face;
 }
 
