@@ -70,9 +70,6 @@ class MaterialTable {
   std::vector<SurfacePair> pairs_;  // n x n, a's row
 };
 
-// A rigid particle: one sphere or a rigid cluster of (possibly overlapping)
-// spheres. Sphere centres are given in the principal frame with the centre
-// of mass at the origin, so the inertia tensor is diagonal.
 // A cluster of spheres of one radius whose centres lie in one plane (a
 // flake) is a plate of that thickness: the hull of its centres swept by the
 // sphere. Another particle's sphere over the hull meets the plate's face,
@@ -90,6 +87,9 @@ struct FlatFace {
   bool covers(double x, double y) const;
 };
 
+// A rigid particle: one sphere or a rigid cluster of (possibly overlapping)
+// spheres. Sphere centres are given in the principal frame with the centre
+// of mass at the origin, so the inertia tensor is diagonal.
 struct ParticleShape {
   std::vector<Vec3> centers;
   std::vector<double> radii;
@@ -208,10 +208,11 @@ struct ContactSettings {
   double recovery_speed = defaults::kRecoverySpeed;  // m/s: cap on the speed of pushing out overlaps
   double restitution_threshold = defaults::kRestitutionThreshold;  // m/s: slower impacts are plastic
   Manifold manifold = Manifold::Hold;
-  // A sphere over a flake's face meets the plate (FlatFace), not the
-  // flake's spheres: flakes stack at their thickness, not nested in each
-  // other's hollows, and one face's contacts share its normal, so that
-  // four of them hold it.
+  // A flake meets other particles as the plate its spheres make
+  // (FlatFace), face and rim, not with its spheres: flakes stack at their
+  // thickness, not nested in each other's hollows, one face's contacts
+  // share its normal, so that four of them hold it, and flakes side by
+  // side meet at their nearest corners.
   bool flat_faces = false;
 };
 
