@@ -119,8 +119,8 @@ spread = [difference([mine[k]], [mine[0]]) for k in range(1, len(seeds))]
 left_out = (f" {on_machine} particles still on the machine at the end of one run or both "
             "are left out." if on_machine else "")
 lines += ["", f"Largest difference: grade {100 * largest(d, 0):.2f} points, recovery "
-          f"{100 * largest(d, 1):.2f} points.{left_out} {switched} of the {particles} particles land "
-          "in another product at the reference's settings. Each seed on its own: "
+          f"{100 * largest(d, 1):.2f} points.{left_out} {switched} of the {particles} "
+          "particles land in another product at the reference's settings. Each seed on its own: "
           + ", ".join(f"seed {s} {100 * largest(x, 0):.2f} and {100 * largest(x, 1):.2f}"
                       for s, x in zip(seeds, per_seed))
           + " (grade, recovery). One run's sampling of the feed, for scale: the "
