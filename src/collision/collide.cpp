@@ -11,8 +11,10 @@
 namespace ces {
 namespace {
 
-
 constexpr std::size_t kChunk = 128;  // fixed, so contact order never depends on threads
+
+// The index after i round a loop of n, without a division.
+std::size_t next(std::size_t i, std::size_t n) { return i + 1 == n ? 0 : i + 1; }
 
 double smallest_radius(const ParticleShape& s) {
   return *std::min_element(s.radii.begin(), s.radii.end());
@@ -54,39 +56,43 @@ void sphere_sphere(const Vec3& ca, double ra, const Vec3& cb, double rb, double 
   out.push_back({n, ca + n * (ra + 0.5 * gap), gap, std::min(ra, rb), key});
 }
 
-// A flake's plate this step (FlatFace): its mid-plane's unit normal, its
-// in-plane axes and its origin in the world, and its spheres' centres.
-// Inactive for a shape that is not flat, or where the scene keeps sphere
-// on sphere.
+// A flake's plate frame in the world, its shape turned by `turn` and
+// scaled about its centre at `position`.
+PlateFrame plate_frame(const FlatFace& face, const Mat3& turn, const Vec3& position,
+                       double scale) {
+  return {turn * face.normal, turn * face.x_axis, turn * face.y_axis,
+          position + scale * (turn * face.origin)};
+}
+
+// A flake's plate this step (FlatFace): its spheres' centres in the world,
+// and its frame (PlateFrame). Inactive for a shape that is not
+// flat, or where the scene keeps sphere on sphere.
 struct Plate {
   const FlatFace* face = nullptr;
   const Vec3* centres = nullptr;  // the flake's spheres in the world
   Vec3 normal, x_axis, y_axis, origin, position;
   double scale = 1.0, radius = 0.0, reach = 0.0;
 
-  Plate(const ParticleShape& s, const Quat& orientation, const Vec3& position, double scale,
-        const Vec3* centres, bool enabled) {
-    if (!enabled || !s.face.flat()) return;
-    const Mat3 R = orientation.toRotationMatrix();
+  Plate() = default;
+  Plate(const ParticleShape& s, const PlateFrame& frame, const Vec3& position, double scale,
+        const Vec3* centres) {
+    if (!s.face.flat()) return;
     face = &s.face;
     this->centres = centres;
-    normal = R * s.face.normal;
-    x_axis = R * s.face.x_axis;
-    y_axis = R * s.face.y_axis;
-    origin = position + scale * (R * s.face.origin);
+    normal = frame.normal;
+    x_axis = frame.x_axis;
+    y_axis = frame.y_axis;
+    origin = frame.origin;
     this->position = position;
     this->scale = scale;
     radius = scale * s.radii[0];
     reach = scale * s.bounding_radius;
   }
   bool active() const { return face != nullptr; }
-  // Whether a point is over the face (its projection in the hull), and
-  // then its height above the mid-plane (signed along the normal).
-  bool over(const Vec3& c, double& height) const {
-    const Vec3 d = c - origin;
-    if (!face->covers(d.dot(x_axis) / scale, d.dot(y_axis) / scale)) return false;
-    height = d.dot(normal);
-    return true;
+  // Whether a point d from the origin is over the face (its projection in
+  // the hull).
+  bool over(const Vec3& d) const {
+    return face->covers(d.dot(x_axis) / scale, d.dot(y_axis) / scale);
   }
   // The point of the hull's edges nearest c (the first of equals).
   Vec3 nearest_on_rim(const Vec3& c) const {
@@ -95,8 +101,12 @@ struct Plate {
     double least = std::numeric_limits<double>::infinity();
     for (std::size_t e = 0; e < k.size(); ++e) {
       const Vec3& a = centres[k[e]];
-      const Vec3 edge = centres[k[(e + 1) % k.size()]] - a;
-      const double t = std::clamp((c - a).dot(edge) / edge.squaredNorm(), 0.0, 1.0);
+      const Vec3 edge = centres[k[next(e, k.size())]] - a;
+      // Clamped to the edge before dividing: c is beside most edges' ends.
+      const double along = (c - a).dot(edge), squared_edge = edge.squaredNorm();
+      const double t = along <= 0.0            ? 0.0
+                       : along >= squared_edge ? 1.0
+                                               : along / squared_edge;
       const Vec3 q = a + t * edge;
       const double squared = (c - q).squaredNorm();
       if (squared < least) {
@@ -131,23 +141,26 @@ void sphere_plate(const Vec3& c, double r, const Vec3& q, const Vec3& up_hint, c
 void spheres_on_plate(const Vec3* centres, const ParticleShape& s, double scale,
                       const Plate& plate, bool corners_only, bool a_side, ContactKey key,
                       double envelope, std::vector<Candidate>& out) {
-  static thread_local std::vector<std::uint8_t> corner;
-  corner.assign(s.centers.size(), !corners_only);
-  if (corners_only)
-    for (std::uint32_t k : s.face.corners) corner[k] = 1;
   std::uint32_t& own = a_side ? key.feature_a : key.feature_b;
   std::uint32_t& other = a_side ? key.feature_b : key.feature_a;
+  // The plate's face and rim lie in its mid-plane (to a billionth of its
+  // size, FlatFace): a sphere farther from the plane than it can reach
+  // meets neither, and is passed over before the hull is searched. The
+  // margin is far above both.
+  const double slack = 1e-6 * plate.reach;
   for (std::size_t k = 0; k < s.centers.size(); ++k) {
     const Vec3& c = centres[k];
     const double r = scale * s.radii[k], far = plate.reach + r + envelope;
     if ((c - plate.position).squaredNorm() > far * far) continue;
+    const Vec3 d = c - plate.origin;
+    const double height = d.dot(plate.normal);
+    if (std::abs(height) > r + plate.radius + envelope + slack) continue;
     own = std::uint32_t(k);
-    double height;
-    if (plate.over(c, height)) {
+    if (plate.over(d)) {
       other = kPlateFeature;
       const Vec3 up = height < 0.0 ? Vec3(-plate.normal) : plate.normal;
       sphere_plate(c, r, c - height * plate.normal, up, plate, a_side, envelope, key, out);
-    } else if (corner[k]) {
+    } else if (!corners_only || s.face.at_corner[k] != 0) {
       other = kRimFeature;
       sphere_plate(c, r, plate.nearest_on_rim(c), plate.normal, plate, a_side, envelope, key, out);
     }
@@ -369,13 +382,19 @@ void Collider::narrowphase(const Model& model, const Particles& p, const Bodies&
   sphere_first_[n] = 0;
   exclusive_scan(sphere_first_);
   sphere_centre_.resize(sphere_first_[n]);
+  // And each flake's plate frame, once per step, not once per neighbour.
+  const bool flat = model.contact.flat_faces;
+  if (flat) plate_frame_.resize(n);
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(n); ++s) {
     const auto i = std::size_t(s);
     const ParticleShape& shape = model.shapes[std::size_t(p.shape[i])];
-    const Mat3 R = p.orientation[i].toRotationMatrix() * p.scale[i];
+    const Mat3 turn = p.orientation[i].toRotationMatrix();
+    const Mat3 R = turn * p.scale[i];
     for (std::size_t k = 0; k < shape.centers.size(); ++k)
       sphere_centre_[sphere_first_[i] + k] = p.position[i] + R * shape.centers[k];
+    if (flat && shape.face.flat())
+      plate_frame_[i] = plate_frame(shape.face, turn, p.position[i], p.scale[i]);
   }
   speed_changes(model, p);
   particle_pairs(model, p, out);
@@ -449,18 +468,22 @@ void rims_crossing(const Plate& a, const Plate& b, ContactKey key, double envelo
   if ((a.position - b.position).squaredNorm() > far * far) return;
   for (std::size_t i = 0; i < ka.size(); ++i) {
     const Vec3& p = a.centres[ka[i]];
-    const Vec3 d1 = a.centres[ka[(i + 1) % ka.size()]] - p;
+    const Vec3 d1 = a.centres[ka[next(i, ka.size())]] - p;
     for (std::size_t j = 0; j < kb.size(); ++j) {
       const Vec3& q = b.centres[kb[j]];
-      const Vec3 d2 = b.centres[kb[(j + 1) % kb.size()]] - q;
+      const Vec3 d2 = b.centres[kb[next(j, kb.size())]] - q;
       // The lines' nearest points (Ericson, Real-Time Collision Detection,
       // 5.1.9), kept only where both are inside their edges.
       const Vec3 r = p - q;
       const double aa = d1.squaredNorm(), e = d2.squaredNorm(), bb = d1.dot(d2);
       const double denom = aa * e - bb * bb;
       if (!(denom > 1e-6 * aa * e)) continue;  // parallel, or nearly
-      const double s = (bb * d2.dot(r) - e * d1.dot(r)) / denom;
-      const double t = (aa * d2.dot(r) - bb * d1.dot(r)) / denom;
+      // s and t are in (0, 1) only where their numerators are in (0,
+      // denom): most pairs of edges are passed over before dividing.
+      const double s_num = bb * d2.dot(r) - e * d1.dot(r);
+      const double t_num = aa * d2.dot(r) - bb * d1.dot(r);
+      if (!(s_num > 0.0 && s_num < denom && t_num > 0.0 && t_num < denom)) continue;
+      const double s = s_num / denom, t = t_num / denom;
       if (!(s > 0.0 && s < 1.0 && t > 0.0 && t < 1.0)) continue;
       const Vec3 c1 = p + s * d1, c2 = q + t * d2, d = c2 - c1;
       const double len = d.norm(), gap = len - a.radius - b.radius;
@@ -482,8 +505,8 @@ void Collider::pair_candidates(const Model& model, const Particles& p, std::size
   const Vec3* centre_i = &sphere_centre_[sphere_first_[i]];
   const Vec3* centre_j = &sphere_centre_[sphere_first_[j]];
   const bool flat = model.contact.flat_faces;
-  const Plate plate_i(si, p.orientation[i], p.position[i], sci, centre_i, flat);
-  const Plate plate_j(sj, p.orientation[j], p.position[j], scj, centre_j, flat);
+  const Plate plate_i = flat ? Plate(si, plate_frame_[i], p.position[i], sci, centre_i) : Plate();
+  const Plate plate_j = flat ? Plate(sj, plate_frame_[j], p.position[j], scj, centre_j) : Plate();
   if (plate_i.active() || plate_j.active()) {
     // A plate meets the other's spheres, or both plates each other's.
     const ContactKey key{p.id[i], p.id[j], 0, 0};

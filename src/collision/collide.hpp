@@ -13,6 +13,12 @@
 
 namespace ces {
 
+// A flake's plate in the world this step (FlatFace): its mid-plane's unit
+// normal, its in-plane axes and its origin.
+struct PlateFrame {
+  Vec3 normal, x_axis, y_axis, origin;
+};
+
 class Collider {
  public:
   // Each particle's collision envelope for this step, and the pairs of
@@ -42,6 +48,7 @@ class Collider {
   std::vector<Vec3> centers_;
   std::vector<std::size_t> sphere_first_;  // particle i's spheres: [first[i], first[i + 1])
   std::vector<Vec3> sphere_centre_;        // in the world, this step
+  std::vector<PlateFrame> plate_frame_;    // particle i's, if a flake with flat faces
   std::vector<double> reach_, envelope_;
   std::vector<double> kick_;  // what impacts with neighbours can add to the travel (m)
   // For the manifold's cull (speed_changes): the largest impulses the

@@ -245,6 +245,8 @@ FlatFace flat_face(const ParticleShape& s) {
     face.corners.push_back(chain[i].sphere);
   }
   if (face.hull.size() < 3) return FlatFace{};  // centres in a line: a rod, not a plate
+  face.at_corner.assign(s.centers.size(), 0);
+  for (std::uint32_t k : face.corners) face.at_corner[k] = 1;
   face.normal = normal;
   face.x_axis = x_axis;
   face.y_axis = y_axis;
@@ -257,7 +259,7 @@ FlatFace flat_face(const ParticleShape& s) {
 bool FlatFace::covers(double x, double y) const {
   for (std::size_t i = 0; i < hull.size(); ++i) {
     const auto& a = hull[i];
-    const auto& b = hull[(i + 1) % hull.size()];
+    const auto& b = hull[i + 1 == hull.size() ? 0 : i + 1];
     const double ex = b[0] - a[0], ey = b[1] - a[1];
     // The cross product is the edge's length times the distance from it.
     if (ex * (y - a[1]) - ey * (x - a[0]) < -1e-9 * (ex * ex + ey * ey)) return false;

@@ -82,6 +82,7 @@ struct FlatFace {
   // The centres' convex hull in (x, y), counter-clockwise; empty: not flat.
   std::vector<std::array<double, 2>> hull;
   std::vector<std::uint32_t> corners;  // the sphere at each corner of the hull
+  std::vector<std::uint8_t> at_corner;  // per sphere: 1 where it is one of corners
   bool flat() const { return !hull.empty(); }
   // Whether (x, y) is in the hull or on it (to a billionth of an edge).
   bool covers(double x, double y) const;
