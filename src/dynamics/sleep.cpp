@@ -40,10 +40,8 @@ void mark_support(std::int32_t& slot, std::int32_t body) {
 
 // Adds the impulse J to a particle's pushes, component by component.
 void add_push(std::array<std::int64_t, 3>& slot, const Vec3& J) {
-  for (int c = 0; c < 3; ++c) {
-    const auto units = std::int64_t(std::clamp(J[c], -kPushCap, kPushCap) / kPushUnit);
-    std::atomic_ref<std::int64_t>(slot[std::size_t(c)]).fetch_add(units, std::memory_order_relaxed);
-  }
+  for (int c = 0; c < 3; ++c)
+    slot[std::size_t(c)] += std::int64_t(std::clamp(J[c], -kPushCap, kPushCap) / kPushUnit);
 }
 
 // Whether particle i moves with body k's surface, within the speed.
@@ -174,20 +172,36 @@ void Sleep::carry(const std::vector<Pose>& before, const Bodies& bodies, Particl
 void Sleep::read_contacts(const Contacts& c, const std::vector<Vec3>& impulses,
                           std::size_t np) {
   pressed_by_.assign(np, kNone);
-  push_.assign(np, {0, 0, 0});
   const auto nc = std::ptrdiff_t(c.size());
-#pragma omp parallel for schedule(static) if (nc > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < nc; ++s) {
-    const auto k = std::size_t(s);
-    const auto a = std::size_t(c.body_a[k]), b = std::size_t(c.body_b[k]);
-    const Vec3& impulse = impulses[k];
-    if (a >= np) {  // a body's contact names the body first
-      if (impulse.dot(c.normal[k]) > 0.0) mark_support(pressed_by_[b], std::int32_t(a - np));
-      continue;
+  const int threads = nc > kParallelMin ? omp_get_max_threads() : 1;
+  // Each thread adds into pushes of its own, the first into push_, and
+  // the others' are added to it after: integers, so the sums are the same
+  // whatever the threads, without an atomic add per contact.
+  push_.assign(np, {0, 0, 0});
+  more_push_.resize(std::size_t(threads - 1));
+  for (auto& part : more_push_) part.assign(np, {0, 0, 0});
+#pragma omp parallel num_threads(threads)
+  {
+    const auto t = std::size_t(omp_get_thread_num());
+    std::vector<std::array<std::int64_t, 3>>& push = t == 0 ? push_ : more_push_[t - 1];
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t s = 0; s < nc; ++s) {
+      const auto k = std::size_t(s);
+      const auto a = std::size_t(c.body_a[k]), b = std::size_t(c.body_b[k]);
+      const Vec3& impulse = impulses[k];
+      if (a >= np) {  // a body's contact names the body first
+        if (impulse.dot(c.normal[k]) > 0.0) mark_support(pressed_by_[b], std::int32_t(a - np));
+        continue;
+      }
+      add_push(push[a], -impulse);
+      add_push(push[b], impulse);
     }
-    add_push(push_[a], -impulse);
-    add_push(push_[b], impulse);
   }
+  if (more_push_.empty()) return;
+#pragma omp parallel for schedule(static)
+  for (std::size_t i = 0; i < np; ++i)
+    for (const auto& part : more_push_)
+      for (std::size_t d = 0; d < 3; ++d) push_[i][d] += part[i][d];
 }
 
 // Whether the force body k must give particle i to carry it on its circle,

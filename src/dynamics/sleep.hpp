@@ -61,6 +61,7 @@ class Sleep {
   // (kPushUnit) so that the sum is the same in any order.
   std::vector<std::int32_t> pressed_by_;
   std::vector<std::array<std::int64_t, 3>> push_;
+  std::vector<std::vector<std::array<std::int64_t, 3>>> more_push_;  // threads' but the first's
   std::vector<geo::Aabb> bounds_;  // per body: its shape's local bounds
 };
 
