@@ -174,6 +174,7 @@ TEST(Cli, BadArgumentsExitTwo) {
   EXPECT_EQ(ces_sim("").code, 2);
   EXPECT_EQ(ces_sim("--no-such-option " + scene("tiny.yaml")).code, 2);
   EXPECT_EQ(ces_sim(scene("tiny.yaml") + " --set nonsense").code, 2);
+  EXPECT_EQ(ces_sim(scene("tiny.yaml") + " --unset no.such.key").code, 2);
   EXPECT_EQ(ces_sim(scene("tiny.yaml") + " --threads 100000").code, 2);
   EXPECT_EQ(ces_sim("compare /nonexistent/a /nonexistent/b").code, 2);
 }

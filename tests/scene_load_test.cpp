@@ -1,5 +1,5 @@
 // Scene files in: includes (merge, order, cycles), command-line overrides
-// (--set) and the scene's own set: list.
+// (--set) and removals (--unset), and the scene's own set: list.
 #include "scene/scene.hpp"
 
 #include <gtest/gtest.h>
@@ -213,6 +213,72 @@ TEST(SceneOverrides, BadValuesPointAtTheOverride) {
             "--set:1:1: solver.method: got 'fast', expected one of apgd, spg, psor or pgs");
   EXPECT_EQ(errors[1].str(),
             "--set:2:1: time.step: '2 kg' is a mass (kg), expected a time (s), e.g. \"1 ms\"");
+}
+
+// ------------------------------------------------------------------ --unset
+
+// A scene with a solver section, a sleep section and two bodies.
+std::string scene_to_unset(TempDir& dir) {
+  return dir.write(
+      "s.yaml",
+      std::string(kMinimal) +
+          "materials: {steel: {friction: 0.5}}\n"
+          "bodies:\n"
+          "  - {name: drum, geometry: {cylinder: {radius: 0.16, length: 0.3}}, material: steel}\n"
+          "  - {name: floor, geometry: {plane: {point: [0, -0.2, 0], normal: [0, 1, 0]}}, "
+          "material: steel}\n"
+          "solver: {max_iterations: 7, sleep: {speed: 5 mm/s, time: 0.1 s}}\n");
+}
+
+// A removed key is as if the scene had never written it: the schema's
+// default takes its place, a section without one (sleep) is gone, and a
+// list item goes from its list.
+TEST(SceneUnset, RemovesKeysSectionsAndListItems) {
+  TempDir dir;
+  const std::string scene = scene_to_unset(dir);
+  const Simulation written = load(scene);
+  ASSERT_EQ(written.model->solver.max_iterations, 7);
+  ASSERT_TRUE(written.model->sleep.enabled);
+  ASSERT_EQ(written.model->bodies.size(), 2u);
+  LoadOptions o;
+  o.removals = {"solver.max_iterations", "solver.sleep", "bodies.floor"};
+  const Simulation removed = load(scene, o);
+  const Simulation bare = load(dir.write("bare.yaml", kMinimal));
+  EXPECT_EQ(removed.model->solver.max_iterations, bare.model->solver.max_iterations);
+  EXPECT_FALSE(removed.model->sleep.enabled);
+  ASSERT_EQ(removed.model->bodies.size(), 1u);
+  EXPECT_EQ(removed.model->bodies[0].name, "drum");
+  EXPECT_EQ(removed.resolved_yaml.find("sleep"), std::string::npos);
+}
+
+// Removals come before every --set, whatever their order on the command
+// line: a section set after its removal holds only what --set gives it.
+TEST(SceneUnset, GoesBeforeTheOverrides) {
+  TempDir dir;
+  const std::string scene = scene_to_unset(dir);
+  LoadOptions o = sets({{"solver.sleep.time", "1 s"}});
+  EXPECT_DOUBLE_EQ(load(scene, o).model->sleep.speed, 0.005);  // kept from the scene
+  o.removals = {"solver.sleep"};
+  const auto errors = load_errors(scene, o);
+  ASSERT_EQ(errors.size(), 1u) << all(errors);
+  EXPECT_NE(errors[0].str().find("speed"), std::string::npos) << errors[0].str();
+  o.overrides = {{"solver.sleep", "{speed: 1 mm/s, time: 1 s}"}};
+  EXPECT_DOUBLE_EQ(load(scene, o).model->sleep.speed, 0.001);
+}
+
+// A path the scene does not hold is reported at the removal, not ignored.
+TEST(SceneUnset, WhatTheSceneDoesNotSetIsAnError) {
+  TempDir dir;
+  LoadOptions o;
+  o.removals = {"solver.sleep", "solver.slep", "bodies.wall", "time.step.unit", "solver..x"};
+  const auto errors = load_errors(scene_to_unset(dir), o);
+  ASSERT_EQ(errors.size(), 4u) << all(errors);
+  EXPECT_EQ(errors[0].str(),
+            "--unset:2:1: solver.slep: the scene sets no 'solver.slep', expected a key or list "
+            "item it sets");
+  EXPECT_EQ(errors[1].line, 3);
+  EXPECT_EQ(errors[2].line, 4);
+  EXPECT_EQ(errors[3].line, 5);
 }
 
 // ------------------------------------------------------------------ set:

@@ -49,6 +49,19 @@ TEST(Study, CasesPassOnTheIncludePaths) {
   EXPECT_EQ(tail, (std::vector<std::string>{"--include-path", "/a/machines", "--include-path", "/b"}));
 }
 
+// The user's own --unset reaches every case, before any --set.
+TEST(Study, CasesPassOnTheRemovals) {
+  study::Options o;
+  o.scene = kScene;
+  o.base_unsets = {"solver.sleep"};
+  o.base_sets = {{"time.end", "0.1s"}};
+  const auto cases = study::make_cases({study::parse_axis("seed=1,2")});
+  const std::vector<std::string> args = study::case_arguments(o, cases[1]);
+  const std::vector<std::string> middle(args.begin() + 4, args.begin() + 10);
+  EXPECT_EQ(middle, (std::vector<std::string>{"--unset", "solver.sleep", "--set", "time.end=0.1s",
+                                              "--set", "seed=2"}));
+}
+
 // Keys joined by ':' vary together: DVI and DEM each at their own steps.
 TEST(Study, ZippedKeysVaryTogether) {
   const auto cases = study::make_cases({study::parse_axis("contact.model:time.step=dvi:1ms,dem:5us"),

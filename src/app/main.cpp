@@ -1,8 +1,8 @@
 // ces-sim: the command line.
 //
-//   ces-sim SCENE [-o DIR] [--set key.path=value]... [--seed N] [--threads N]
-//           [--include-path DIR]... [--quiet]
-//   ces-sim validate SCENE [--set ...] [--include-path DIR]...
+//   ces-sim SCENE [-o DIR] [--unset key.path]... [--set key.path=value]... [--seed N]
+//           [--threads N] [--include-path DIR]... [--quiet]
+//   ces-sim validate SCENE [--unset ...] [--set ...] [--include-path DIR]...
 //   ces-sim schema [--markdown]
 //   ces-sim resume DIR [--threads N] [--quiet]
 //   ces-sim compare DIR_A DIR_B [--tol-count N] [--tol-mass F] [--tol-w1 MM]
@@ -59,6 +59,7 @@ struct Args {
   std::string scene;
   std::string out_dir;
   std::vector<std::string> sets;
+  std::vector<std::string> unsets;
   std::vector<std::string> include_paths;
   std::optional<std::uint64_t> seed;
   std::optional<int> threads;
@@ -71,6 +72,9 @@ struct Args {
 void add_scene_options(CLI::App& app, Args& args) {
   app.add_option("--set", args.sets, "Override a scene value before validation: key.path=value")
       ->type_name("K=V");
+  app.add_option("--unset", args.unsets,
+                 "Remove a scene key or list item before the --set values: key.path")
+      ->type_name("K");
   app.add_option("--seed", args.seed, "Random seed (wins over the scene's)");
   app.add_option("--threads", args.threads, "Worker threads (1 to 1024)")
       ->check(CLI::Range(1, 1024));
@@ -88,6 +92,7 @@ ces::scene::LoadOptions load_options(const Args& args) {
       throw UsageError("--set " + s + ": expected key.path=value");
     o.overrides.emplace_back(s.substr(0, eq), s.substr(eq + 1));
   }
+  o.removals = args.unsets;
   o.seed = args.seed;
   o.threads = args.threads;
   o.include_paths = args.include_paths;
@@ -224,7 +229,9 @@ int study(const Args& args, StudyArgs& study) {
   try {
     ces::study::Options& o = study.options;
     o.scene = args.scene;
-    o.base_sets = load_options(args).overrides;
+    const ces::scene::LoadOptions scene_options = load_options(args);
+    o.base_sets = scene_options.overrides;
+    o.base_unsets = scene_options.removals;
     o.include_paths = args.include_paths;
     o.seed = args.seed;
     o.threads = args.threads;

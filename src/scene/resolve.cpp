@@ -338,6 +338,36 @@ void apply_override(Node& root, const std::string& key_path, const std::string& 
     *target = std::move(*replacement);
 }
 
+void apply_removal(Node& root, const std::string& key_path, int ordinal, Diagnostics& diags) {
+  const Mark mark{"--unset", ordinal, 1};
+  const auto segments = override_segments(key_path, key_path, mark, diags);
+  if (!segments) return;
+  const auto missing = [&] {
+    diags.error(mark, key_path, "the scene sets no '" + excerpt(key_path) +
+                                    "', expected a key or list item it sets");
+  };
+  // Down to the parent, creating nothing.
+  Node* parent = &root;
+  for (std::size_t s = 0; s + 1 < segments->size(); ++s) {
+    const std::string& segment = (*segments)[s];
+    const std::optional<std::size_t> item =
+        parent->is_sequence() ? find_item(*parent, segment) : std::nullopt;
+    parent = parent->is_map() ? parent->find(segment) : item ? &parent->items[*item] : nullptr;
+    if (parent == nullptr) return missing();
+  }
+  const std::string& last = segments->back();
+  if (parent->is_map()) {
+    const auto at = std::find_if(parent->entries.begin(), parent->entries.end(),
+                                 [&](const Entry& e) { return e.key == last; });
+    if (at == parent->entries.end()) return missing();
+    parent->entries.erase(at);
+  } else if (const auto item = parent->is_sequence() ? find_item(*parent, last) : std::nullopt) {
+    parent->items.erase(parent->items.begin() + std::ptrdiff_t(*item));
+  } else {
+    missing();
+  }
+}
+
 void apply_scene_set(Node& root, Diagnostics& diags) {
   const auto at = std::find_if(root.entries.begin(), root.entries.end(),
                                [](const Entry& e) { return e.key == "set"; });

@@ -35,6 +35,13 @@ std::optional<Node> load_tree_text(const std::string& text, const std::string& p
 void apply_override(Node& root, const std::string& key_path, const std::string& value, int ordinal,
                     Budget& budget, Diagnostics& diags);
 
+// Applies one "--unset key.path" (the ordinal-th, 1-based): removes the
+// key, or the list item, that the path names (as apply_override walks it),
+// so that the schema's default, or nothing, takes its place. A path the
+// tree does not hold is an error: a misspelt key would otherwise remove
+// nothing in silence.
+void apply_removal(Node& root, const std::string& key_path, int ordinal, Diagnostics& diags);
+
 // Applies the tree's top-level `set:` (merged from the scene and its
 // includes) and removes it: each key path, as --set takes it, gets its
 // value, in the order written. Before the command line's --set, which wins.

@@ -34,6 +34,8 @@ Simulation finish(std::optional<Node> tree, const std::string& path, const LoadO
   if (!tree) diags.raise();
   Node& root = *tree;
   apply_scene_set(root, diags);
+  for (std::size_t i = 0; i < options.removals.size(); ++i)
+    apply_removal(root, options.removals[i], int(i + 1), diags);
   for (std::size_t i = 0; i < options.overrides.size(); ++i)
     apply_override(root, options.overrides[i].first, options.overrides[i].second, int(i + 1),
                    budget, diags);

@@ -1,15 +1,16 @@
 // Scene files in: YAML or JSON -> validated, resolved, compiled Simulation.
 //
 // Pipeline (every stage adds to one list of diagnostics; SceneError carries
-// them all): read the file and its includes -> apply --set, --seed ->
+// them all): read the file and its includes -> apply --unset, --set, --seed ->
 // fill schema defaults -> resolved text (Simulation::resolved_yaml) ->
 // convert units -> validate against schema/scene.schema.json -> compile
 // (references, physical sanity, meshes). Compilation runs only on a valid
 // tree, so reference and sanity errors appear once the structure is right.
 //
 // Precedence, lowest first: included fragments in list order, the including
-// file, --set overrides in order, --seed. Maps merge key by key, lists
-// concatenate (included items first), other values are replaced.
+// file (its `set:` last), --unset removals, --set overrides in order,
+// --seed. Maps merge key by key, lists concatenate (included items first),
+// other values are replaced.
 #pragma once
 #include <cstdint>
 #include <optional>
@@ -49,6 +50,8 @@ class SceneError : public std::runtime_error {
 struct LoadOptions {
   // "--set key.path=value" overrides, applied before validation, in order.
   std::vector<std::pair<std::string, std::string>> overrides;
+  // "--unset key.path" removals, applied before the overrides, in order.
+  std::vector<std::string> removals;
   std::optional<std::uint64_t> seed;  // --seed, wins over the scene's
   std::optional<int> threads;         // --threads
   // --include-path: folders includes may come from besides the scene's own.

@@ -155,6 +155,7 @@ std::vector<std::string> study_arguments(const Options& o) {
     for (const std::string& v : a.values) values += (values.empty() ? "" : ",") + v;
     args.insert(args.end(), {"--vary", a.key + "=" + values});
   }
+  for (const std::string& k : o.base_unsets) args.insert(args.end(), {"--unset", k});
   for (const auto& [k, v] : o.base_sets) args.insert(args.end(), {"--set", k + "=" + v});
   if (o.seed) args.insert(args.end(), {"--seed", std::to_string(*o.seed)});
   if (o.threads) args.insert(args.end(), {"--threads", std::to_string(*o.threads)});
@@ -394,6 +395,7 @@ std::vector<Case> make_cases(const std::vector<Axis>& axes) {
 
 std::vector<std::string> case_arguments(const Options& o, const Case& c) {
   std::vector<std::string> args{o.scene, "-o", case_dir(o, c).string(), "--quiet"};
+  for (const std::string& k : o.base_unsets) args.insert(args.end(), {"--unset", k});
   for (const Sets* sets : {&o.base_sets, &c.sets})
     for (const auto& [k, v] : *sets) {
       args.push_back("--set");
@@ -413,6 +415,7 @@ std::size_t finest_case(const Options& o, const std::vector<Case>& cases) {
   for (const Case& c : cases) {
     scene::LoadOptions lo;
     lo.overrides = o.base_sets;
+    lo.removals = o.base_unsets;
     lo.include_paths = o.include_paths;
     lo.overrides.insert(lo.overrides.end(), c.sets.begin(), c.sets.end());
     const Simulation sim = scene::load(o.scene, lo);

@@ -57,6 +57,7 @@ struct Options {
   Scheduler scheduler = Scheduler::Local;
   std::vector<Axis> axes;
   Sets base_sets;                      // the user's own --set, applied first
+  std::vector<std::string> base_unsets;  // the user's own --unset, before any --set
   std::vector<std::string> include_paths;  // --include-path, passed on to every case
   std::optional<std::uint64_t> seed;
   std::optional<int> threads;          // per case; default: cores / jobs
