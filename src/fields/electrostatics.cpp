@@ -352,8 +352,14 @@ DrumGap ElectrostaticsStage::nearest_drum(const ParticleShape& s, const Particle
   const Mat3 to_world = p.orientation[i].toRotationMatrix() * p.scale[i];
   for (std::size_t k = 0; k < s.centers.size(); ++k) {
     const Vec3 c = x + to_world * s.centers[k];
+    const double r = s.radii[k] * p.scale[i];
+    // A centre farther from the axis than R, its radius and the least gap
+    // so far (by a margin far above the rounding) is no nearer: it is
+    // passed over before the hypot.
+    const double beat = out.gap + R + r;
+    if (beat > 0.0 && c.x() * c.x() + c.y() * c.y() > beat * beat * (1.0 + 1e-12)) continue;
     const double axis = std::hypot(c.x(), c.y());
-    const double gap = axis - R - s.radii[k] * p.scale[i];
+    const double gap = axis - R - r;
     if (gap >= out.gap || axis == 0.0) continue;
     out.gap = gap;
     out.normal = Vec3(c.x() / axis, c.y() / axis, 0.0);
