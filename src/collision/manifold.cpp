@@ -52,12 +52,6 @@ void sort_planar(Planar* a, Planar* spare, std::size_t m, std::vector<std::uint3
   }
 }
 
-// Twice the signed area of the triangle (o, a, b): positive where a to b
-// turns left about o.
-double cross(const Planar& o, const Planar& a, const Planar& b) {
-  return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
-}
-
 // The hull of a group's members across its normal, as hull_points leaves
 // it in its thread's buffer until its next call: the members in the plane,
 // and the hull's corners in order, counter-clockwise (the first and the
@@ -72,7 +66,7 @@ struct Hull {
 // A hull's fan of triangles from its first corner o, for interpolating at
 // its many members: each corner's offset from o and each triangle's (o, i,
 // i + 1) doubled area, made once per hull, where each member would make
-// them again. A member's weights in a triangle are cross()'s own numbers.
+// them again. A member's weights in a triangle are turn()'s own numbers.
 class Fan {
  public:
   explicit Fan(const Hull& hull);
@@ -103,7 +97,7 @@ Fan::Fan(const Hull& hull) : hull_(hull) {
     dy[i] = hull.corners[i].y - o.y;
   }
   for (std::size_t i = 1; i + 1 < n; ++i) {
-    area[i] = dx[i] * dy[i + 1] - dy[i] * dx[i + 1];  // cross(o, a, b)
+    area[i] = dx[i] * dy[i + 1] - dy[i] * dx[i + 1];  // turn(o, a, b)
     // A cross product under this has a weight under -kEdge whatever the
     // division rounds to: most triangles are passed over without one. (An
     // area so small that the bound would round coarsely, near the
@@ -123,9 +117,9 @@ double Fan::interpolate(const Planar& p, const std::vector<double>& value, doubl
   for (std::size_t i = 1; i + 1 < hull_.corner_count; ++i) {
     const double area = area_[i];
     if (!(area > 0.0)) continue;
-    const double cs = px * dy_[i + 1] - py * dx_[i + 1];  // cross(o, p, b)
+    const double cs = px * dy_[i + 1] - py * dx_[i + 1];  // turn(o, p, b)
     if (cs < below_[i]) continue;
-    const double ct = dx_[i] * py - dy_[i] * px;  // cross(o, a, p)
+    const double ct = dx_[i] * py - dy_[i] * px;  // turn(o, a, p)
     if (ct < below_[i]) continue;
     const double s = cs / area, t = ct / area;
     if (s < -kEdge || t < -kEdge || s + t > 1.0 + kEdge) continue;
@@ -164,7 +158,7 @@ Hull hull_points(const std::vector<Candidate>& c, std::span<const std::size_t> m
   sort_planar(order, order + m, m, counts);
   const std::size_t top = monotone_chain(order, m, chain, [](const Planar& o, const Planar& a,
                                                              const Planar& b) {
-    return cross(o, a, b) > 0.0;
+    return turn(o, a, b) > 0.0;
   });
   for (std::size_t i = 0; i < top; ++i) keep[chain[i].k] = 1;
   return {order, m, chain, top};
@@ -192,7 +186,7 @@ std::pair<const Planar*, const Planar*> farthest_sides(std::span<const Planar> p
   const Planar *left = nullptr, *right = nullptr;
   double high = 0.0, low = 0.0;
   for (const Planar& q : plane) {
-    const double area = cross(a, b, q);
+    const double area = turn(a, b, q);
     if (area > high) {
       high = area;
       left = &q;

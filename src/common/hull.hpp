@@ -1,10 +1,18 @@
-// The convex hull of points in a plane, by Andrew's monotone chain: the one
-// loop the manifold reduction (a pair's contacts in the plane across their
-// normal) and a flake's plate (its sphere centres) both build their hulls on.
+// The convex hull of points in a plane, by Andrew's monotone chain, and its
+// turn test: what the manifold reduction (a pair's contacts in the plane
+// across their normal) and a flake's plate (its sphere centres) both build
+// their hulls on.
 #pragma once
 #include <cstddef>
 
 namespace ces {
+
+// Twice the signed area of the triangle (o, a, b), of points with x and y:
+// positive where a to b turns left about o.
+template <class Point>
+double turn(const Point& o, const Point& a, const Point& b) {
+  return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+}
 
 // Of m points sorted by x, then y, the hull's corners into `chain` (room for
 // 2m): the lower hull left to right, then the upper right to left. Each

@@ -189,15 +189,9 @@ Mat3 canonical_axes(Mat3 axes) {
   return axes;
 }
 
-// Twice the signed area of (o, a, b): positive where a to b turns left.
-double turn(const std::array<double, 2>& o, const std::array<double, 2>& a,
-            const std::array<double, 2>& b) {
-  return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
-}
-
 // A sphere's centre in a plane's coordinates.
 struct Corner {
-  std::array<double, 2> at;
+  double x, y;
   std::uint32_t sphere;
 };
 
@@ -224,24 +218,24 @@ FlatFace flat_face(const ParticleShape& s) {
   for (std::size_t k = 0; k < s.centers.size(); ++k) {
     const Vec3 d = s.centers[k] - origin;
     if (std::abs(d.dot(normal)) > thin) return face;
-    points.push_back({{d.dot(x_axis), d.dot(y_axis)}, std::uint32_t(k)});
+    points.push_back({d.dot(x_axis), d.dot(y_axis), std::uint32_t(k)});
   }
   std::sort(points.begin(), points.end(), [](const Corner& a, const Corner& b) {
-    return std::tie(a.at, a.sphere) < std::tie(b.at, b.sphere);
+    return std::tie(a.x, a.y, a.sphere) < std::tie(b.x, b.y, b.sphere);
   });
   std::vector<Corner> chain(2 * points.size());
   const double least_turn = thin * s.bounding_radius;
   const std::size_t top = monotone_chain(
       points.data(), points.size(), chain.data(), [&](const Corner& o, const Corner& a,
                                                       const Corner& b) {
-        return turn(o.at, a.at, b.at) > least_turn;
+        return turn(o, a, b) > least_turn;
       });
   // The chains' ends appear twice: each corner once, counter-clockwise.
   for (std::size_t i = 0; i < top; ++i) {
     const bool repeated = (i > 0 && chain[i].sphere == chain[i - 1].sphere) ||
                           (i + 1 == top && chain[i].sphere == chain[0].sphere);
     if (repeated) continue;
-    face.hull.push_back(chain[i].at);
+    face.hull.push_back({chain[i].x, chain[i].y});
     face.corners.push_back(chain[i].sphere);
   }
   if (face.hull.size() < 3) return FlatFace{};  // centres in a line: a rod, not a plate
