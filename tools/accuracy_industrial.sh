@@ -38,9 +38,8 @@ slice=(--set bodies.drum.geometry.cylinder.length=0.1m
        --set "feeds.feeder.region.outlet.size=[0.10 m, 0.09 m]"
        --set "feeds.feeder.rate=0.0459 t/h" --set feeds.feeder.duration=1s
        --set time.end=2.5s --set time.until=end)
-# Nothing asleep: no particle stays at rest for 100 s in a run of 2.5 s,
-# which gives the bits of a scene with no solver.sleep.
-awake=(--set "solver.sleep={speed: 5 mm/s, time: 100 s}")
+# Nothing asleep: the scene without its solver.sleep.
+awake=(--unset solver.sleep)
 # The engine's own contacts, which the scene changes for cost.
 default_contacts=(--set contact.manifold=hold --set contact.flake_faces=spheres)
 # in_pairs NAME ARGS...: the slice with ARGS into OUT/NAME_SEED for each
@@ -124,8 +123,7 @@ python3 tools/accuracy_report.py --section plant_sleep \
 once (the most of the seeds' runs), too few to show errors that sleep makes only where the \
 drum is crowded; on the slice below, $(asleep plant_sleep). So a slice of \
 \`$plant\` itself, 0.1 m of its 1 m width at its feed rate per width, runs at its own \
-settings and again with nothing asleep (\`${awake[*]}\`: no particle stays at rest that \
-long, which gives the bits of a scene without \`solver.sleep\`); the reference in this \
+settings and again with nothing asleep (\`${awake[*]}\`); the reference in this \
 section is the run with nothing asleep, not a converged run. The slices run two at a time, \
 a thread each. The slice: \`${slice[*]}\`." \
   --against plant_awake "$out" "$doc" "${awake[*]}" "${seeds[@]}"
