@@ -65,8 +65,8 @@ PlateFrame plate_frame(const FlatFace& face, const Mat3& turn, const Vec3& posit
 }
 
 // A flake's plate this step (FlatFace): its spheres' centres in the world,
-// and its frame (PlateFrame). Inactive for a shape that is not
-// flat, or where the scene keeps sphere on sphere.
+// and its frame (PlateFrame). Inactive for a shape that is not flat, or
+// where the scene keeps sphere on sphere.
 struct Plate {
   const FlatFace* face = nullptr;
   const Vec3* centres = nullptr;  // the flake's spheres in the world
