@@ -3,6 +3,7 @@ reports and the load samples from OUT, prints the text of industrial.txt.
 Usage: python3 bench/industrial_report.py OUT START CORES END SHORT SCENE_END AT
 (SCENE_END: the scene's own time.end, in seconds; AT: the full run's
 checkpoint, from which resume_1 and resume_2 ran to END)"""
+import functools
 import json
 import platform
 import statistics
@@ -52,8 +53,10 @@ def step_seconds(s):
     return sum(v for k, v in stages.items() if k != "output")
 
 
+@functools.cache
 def step_rows(name):
-    """A run's steps.csv, each row a dict by column name, values as text."""
+    """A run's steps.csv, each row a dict by column name, values as text
+    (read once: the full run's, of 2000 steps or more, serves two parts)."""
     lines = (out / name / "steps.csv").read_text().splitlines()
     head = lines[0].split(",")
     return [dict(zip(head, line.split(","))) for line in lines[1:]]
