@@ -70,7 +70,8 @@ ref = [runs.fates(f"{out}/{against}_{s}") for s in seeds]
 # left out of both, and counted.
 on_machine = 0
 for k, (a, b) in enumerate(zip(mine, ref)):
-    fed_a, fed_b = runs.fed(f"{out}/{compared}_{seeds[k]}"), runs.fed(f"{out}/{against}_{seeds[k]}")
+    fed_a, fed_b = (summary[f"{kind}_{seeds[k]}"]["balance"]["fed"]["count"]
+                    for kind in (compared, against))
     assert fed_a == fed_b, "a seed fed other particles at the reference's settings"
     mine[k], ref[k] = {i: a[i] for i in a if i in b}, {i: b[i] for i in b if i in a}
     on_machine += fed_a - len(mine[k])

@@ -22,11 +22,6 @@ def summary(folder):
     return s
 
 
-def fed(folder):
-    """How many particles the run fed."""
-    return summary(folder)["balance"]["fed"]["count"]
-
-
 def load_average(folder):
     """The machine's load average before and after the run, as the tool kept
     them beside its folder (FOLDER.load)."""
