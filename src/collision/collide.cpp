@@ -6,15 +6,13 @@
 #include <limits>
 #include <utility>
 
+#include "common/hull.hpp"
 #include "common/parallel.hpp"
 
 namespace ces {
 namespace {
 
 constexpr std::size_t kChunk = 128;  // fixed, so contact order never depends on threads
-
-// The index after i round a loop of n, without a division.
-std::size_t next(std::size_t i, std::size_t n) { return i + 1 == n ? 0 : i + 1; }
 
 double smallest_radius(const ParticleShape& s) {
   return *std::min_element(s.radii.begin(), s.radii.end());
@@ -67,22 +65,19 @@ PlateFrame plate_frame(const FlatFace& face, const Mat3& turn, const Vec3& posit
 // A flake's plate this step (FlatFace): its spheres' centres in the world,
 // and its frame (PlateFrame). Inactive for a shape that is not flat, or
 // where the scene keeps sphere on sphere.
-struct Plate {
+struct Plate : PlateFrame {
   const FlatFace* face = nullptr;
   const Vec3* centres = nullptr;  // the flake's spheres in the world
-  Vec3 normal, x_axis, y_axis, origin, position;
+  Vec3 position;
   double scale = 1.0, radius = 0.0, reach = 0.0;
 
   Plate() = default;
   Plate(const ParticleShape& s, const PlateFrame& frame, const Vec3& position, double scale,
         const Vec3* centres) {
     if (!s.face.flat()) return;
+    PlateFrame::operator=(frame);
     face = &s.face;
     this->centres = centres;
-    normal = frame.normal;
-    x_axis = frame.x_axis;
-    y_axis = frame.y_axis;
-    origin = frame.origin;
     this->position = position;
     this->scale = scale;
     radius = scale * s.radii[0];
@@ -101,7 +96,7 @@ struct Plate {
     double least = std::numeric_limits<double>::infinity();
     for (std::size_t e = 0; e < k.size(); ++e) {
       const Vec3& a = centres[k[e]];
-      const Vec3 edge = centres[k[next(e, k.size())]] - a;
+      const Vec3 edge = centres[k[next_corner(e, k.size())]] - a;
       // Clamped to the edge before dividing: c is beside most edges' ends.
       const double along = (c - a).dot(edge), squared_edge = edge.squaredNorm();
       const double t = along <= 0.0            ? 0.0
@@ -468,10 +463,10 @@ void rims_crossing(const Plate& a, const Plate& b, ContactKey key, double envelo
   if ((a.position - b.position).squaredNorm() > far * far) return;
   for (std::size_t i = 0; i < ka.size(); ++i) {
     const Vec3& p = a.centres[ka[i]];
-    const Vec3 d1 = a.centres[ka[next(i, ka.size())]] - p;
+    const Vec3 d1 = a.centres[ka[next_corner(i, ka.size())]] - p;
     for (std::size_t j = 0; j < kb.size(); ++j) {
       const Vec3& q = b.centres[kb[j]];
-      const Vec3 d2 = b.centres[kb[next(j, kb.size())]] - q;
+      const Vec3 d2 = b.centres[kb[next_corner(j, kb.size())]] - q;
       // The lines' nearest points (Ericson, Real-Time Collision Detection,
       // 5.1.9), kept only where both are inside their edges.
       const Vec3 r = p - q;

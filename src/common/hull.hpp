@@ -14,6 +14,10 @@ double turn(const Point& o, const Point& a, const Point& b) {
   return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
 }
 
+// The corner after corner i of a hull of n, round the loop, without a
+// division.
+inline std::size_t next_corner(std::size_t i, std::size_t n) { return i + 1 == n ? 0 : i + 1; }
+
 // Of m points sorted by x, then y, the hull's corners into `chain` (room for
 // 2m): the lower hull left to right, then the upper right to left. Each
 // chain's last point starts the next, so the two ends appear twice.

@@ -253,7 +253,7 @@ FlatFace flat_face(const ParticleShape& s) {
 bool FlatFace::covers(double x, double y) const {
   for (std::size_t i = 0; i < hull.size(); ++i) {
     const auto& a = hull[i];
-    const auto& b = hull[i + 1 == hull.size() ? 0 : i + 1];
+    const auto& b = hull[next_corner(i, hull.size())];
     const double ex = b[0] - a[0], ey = b[1] - a[1];
     // The cross product is the edge's length times the distance from it.
     if (ex * (y - a[1]) - ey * (x - a[0]) < -1e-9 * (ex * ex + ey * ey)) return false;
