@@ -289,6 +289,15 @@ std::optional<std::vector<std::string>> override_segments(const std::string& key
   return segments;
 }
 
+// The child of a mapping or a list that one path segment names (a key, or
+// an item's index or name); nullptr where there is none.
+Node* child_of(Node& n, const std::string& segment) {
+  if (n.is_map()) return n.find(segment);
+  if (!n.is_sequence()) return nullptr;
+  const auto index = find_item(n, segment);
+  return index ? &n.items[*index] : nullptr;
+}
+
 // The node the path names, maps created on the way; nullptr: reported.
 Node* override_target(Node& root, const std::vector<std::string>& segments,
                       const std::string& shown, const Mark& mark, Diagnostics& diags) {
@@ -296,30 +305,24 @@ Node* override_target(Node& root, const std::vector<std::string>& segments,
   std::string walked;
   for (const std::string& s : segments) {
     if (n->kind == Node::Kind::Null) n->kind = Node::Kind::Map;  // "trajectories:" left empty
-    if (n->is_map()) {
-      Node* child = n->find(s);
-      if (!child) {
-        n->entries.push_back({s, mark, Node{}});
-        child = &n->entries.back().value;
-        child->mark = mark;
-      }
-      n = child;
-    } else if (n->is_sequence()) {
-      const auto index = find_item(*n, s);
-      if (!index) {
-        diags.error(mark, shown,
-                    "invalid override path: '" + walked + "' has no item '" + excerpt(s) +
-                        "', expected an index below " + std::to_string(n->items.size()) +
-                        " or the name of an item");
-        return nullptr;
-      }
-      n = &n->items[*index];
-    } else {
+    Node* child = child_of(*n, s);
+    if (!child && n->is_map()) {
+      n->entries.push_back({s, mark, Node{}});
+      child = &n->entries.back().value;
+      child->mark = mark;
+    } else if (!child && n->is_sequence()) {
+      diags.error(mark, shown,
+                  "invalid override path: '" + walked + "' has no item '" + excerpt(s) +
+                      "', expected an index below " + std::to_string(n->items.size()) +
+                      " or the name of an item");
+      return nullptr;
+    } else if (!child) {
       diags.error(mark, shown,
                   "invalid override path: '" + walked + "' is " + describe(*n) +
                       ", not a mapping or a list");
       return nullptr;
     }
+    n = child;
     walked += (walked.empty() ? "" : ".") + s;
   }
   return n;
@@ -349,10 +352,7 @@ void apply_removal(Node& root, const std::string& key_path, int ordinal, Diagnos
   // Down to the parent, creating nothing.
   Node* parent = &root;
   for (std::size_t s = 0; s + 1 < segments->size(); ++s) {
-    const std::string& segment = (*segments)[s];
-    const std::optional<std::size_t> item =
-        parent->is_sequence() ? find_item(*parent, segment) : std::nullopt;
-    parent = parent->is_map() ? parent->find(segment) : item ? &parent->items[*item] : nullptr;
+    parent = child_of(*parent, (*segments)[s]);
     if (parent == nullptr) return missing();
   }
   const std::string& last = segments->back();
