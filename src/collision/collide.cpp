@@ -162,6 +162,46 @@ void spheres_on_plate(const Vec3* centres, const ParticleShape& s, double scale,
   }
 }
 
+// Two plates' rims where they cross (two flakes edge on edge): the rows
+// between edges of each whose nearest points are inside both. Elsewhere
+// the nearest points of two rims are at a corner of one (spheres_on_plate),
+// and so are those of parallel edges.
+void rims_crossing(const Plate& a, const Plate& b, ContactKey key, double envelope,
+                   std::vector<Candidate>& out) {
+  const std::vector<std::uint32_t>& ka = a.face->corners;
+  const std::vector<std::uint32_t>& kb = b.face->corners;
+  const double far = a.reach + b.reach + envelope;
+  if ((a.position - b.position).squaredNorm() > far * far) return;
+  for (std::size_t i = 0; i < ka.size(); ++i) {
+    const Vec3& p = a.centres[ka[i]];
+    const Vec3 d1 = a.centres[ka[next_corner(i, ka.size())]] - p;
+    for (std::size_t j = 0; j < kb.size(); ++j) {
+      const Vec3& q = b.centres[kb[j]];
+      const Vec3 d2 = b.centres[kb[next_corner(j, kb.size())]] - q;
+      // The lines' nearest points (Ericson, Real-Time Collision Detection,
+      // 5.1.9), kept only where both are inside their edges.
+      const Vec3 r = p - q;
+      const double aa = d1.squaredNorm(), e = d2.squaredNorm(), bb = d1.dot(d2);
+      const double denom = aa * e - bb * bb;
+      if (!(denom > 1e-6 * aa * e)) continue;  // parallel, or nearly
+      // s and t are in (0, 1) only where their numerators are in (0,
+      // denom): most pairs of edges are passed over before dividing.
+      const double s_num = bb * d2.dot(r) - e * d1.dot(r);
+      const double t_num = aa * d2.dot(r) - bb * d1.dot(r);
+      if (!(s_num > 0.0 && s_num < denom && t_num > 0.0 && t_num < denom)) continue;
+      const double s = s_num / denom, t = t_num / denom;
+      if (!(s > 0.0 && s < 1.0 && t > 0.0 && t < 1.0)) continue;
+      const Vec3 c1 = p + s * d1, c2 = q + t * d2, d = c2 - c1;
+      const double len = d.norm(), gap = len - a.radius - b.radius;
+      if (gap >= envelope) continue;
+      const Vec3 n = len > 0.0 ? Vec3(d / len) : a.normal;
+      key.feature_a = kEdgeFeature | std::uint32_t(i);
+      key.feature_b = kEdgeFeature | std::uint32_t(j);
+      out.push_back({n, c1 + n * (a.radius + 0.5 * gap), gap, std::min(a.radius, b.radius), key});
+    }
+  }
+}
+
 // The envelope of a particle at rest: a fraction of its smallest sphere's
 // radius.
 double resting_envelope(const Model& model, const Particles& p, std::size_t i) {
@@ -449,46 +489,6 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
       reduce_manifold(candidates, i, j, surfaces, motion, rule, part);
     }
   });
-}
-
-// Two plates' rims where they cross (two flakes edge on edge): the rows
-// between edges of each whose nearest points are inside both. Elsewhere
-// the nearest points of two rims are at a corner of one (spheres_on_plate),
-// and so are those of parallel edges.
-void rims_crossing(const Plate& a, const Plate& b, ContactKey key, double envelope,
-                   std::vector<Candidate>& out) {
-  const std::vector<std::uint32_t>& ka = a.face->corners;
-  const std::vector<std::uint32_t>& kb = b.face->corners;
-  const double far = a.reach + b.reach + envelope;
-  if ((a.position - b.position).squaredNorm() > far * far) return;
-  for (std::size_t i = 0; i < ka.size(); ++i) {
-    const Vec3& p = a.centres[ka[i]];
-    const Vec3 d1 = a.centres[ka[next_corner(i, ka.size())]] - p;
-    for (std::size_t j = 0; j < kb.size(); ++j) {
-      const Vec3& q = b.centres[kb[j]];
-      const Vec3 d2 = b.centres[kb[next_corner(j, kb.size())]] - q;
-      // The lines' nearest points (Ericson, Real-Time Collision Detection,
-      // 5.1.9), kept only where both are inside their edges.
-      const Vec3 r = p - q;
-      const double aa = d1.squaredNorm(), e = d2.squaredNorm(), bb = d1.dot(d2);
-      const double denom = aa * e - bb * bb;
-      if (!(denom > 1e-6 * aa * e)) continue;  // parallel, or nearly
-      // s and t are in (0, 1) only where their numerators are in (0,
-      // denom): most pairs of edges are passed over before dividing.
-      const double s_num = bb * d2.dot(r) - e * d1.dot(r);
-      const double t_num = aa * d2.dot(r) - bb * d1.dot(r);
-      if (!(s_num > 0.0 && s_num < denom && t_num > 0.0 && t_num < denom)) continue;
-      const double s = s_num / denom, t = t_num / denom;
-      if (!(s > 0.0 && s < 1.0 && t > 0.0 && t < 1.0)) continue;
-      const Vec3 c1 = p + s * d1, c2 = q + t * d2, d = c2 - c1;
-      const double len = d.norm(), gap = len - a.radius - b.radius;
-      if (gap >= envelope) continue;
-      const Vec3 n = len > 0.0 ? Vec3(d / len) : a.normal;
-      key.feature_a = kEdgeFeature | std::uint32_t(i);
-      key.feature_b = kEdgeFeature | std::uint32_t(j);
-      out.push_back({n, c1 + n * (a.radius + 0.5 * gap), gap, std::min(a.radius, b.radius), key});
-    }
-  }
 }
 
 void Collider::pair_candidates(const Model& model, const Particles& p, std::size_t i,
