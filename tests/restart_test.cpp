@@ -95,6 +95,18 @@ const char* const kResults[] = {"bins.csv",         "products.csv",     "crossin
                                 "lost.csv",         "trajectories.csv", "trajectories.pvd",
                                 "scene.resolved.yaml"};
 
+// A resumed run's wall time counts the killed process's up to its last
+// checkpoint, as the stages' do: the total holds all of them.
+void expect_wall_of_every_process(const nlohmann::json& killed, const nlohmann::json& resumed) {
+  const nlohmann::json& wall = resumed["wall_time_s"];
+  double stages = 0.0;
+  for (const auto& [stage, seconds] : wall["stages"].items()) stages += seconds.get<double>();
+  EXPECT_GE(wall["total"].get<double>(), stages);
+  EXPECT_GT(wall["total"].get<double>(), killed["wall_time_s"]["total"].get<double>());
+  EXPECT_GE(wall["stages"]["output"].get<double>(),
+            killed["wall_time_s"]["stages"]["output"].get<double>());
+}
+
 // The run, whole in `whole`, and in `killed` killed at a random moment
 // after its first checkpoint then resumed.
 void expect_resumed_bytes(const fs::path& whole, const fs::path& killed,
@@ -115,6 +127,7 @@ void expect_resumed_bytes(const fs::path& whole, const fs::path& killed,
 
   const Outcome resumed = ces_sim("resume " + killed.string() + " --quiet");
   ASSERT_EQ(resumed.code, 0) << resumed.err;
+  expect_wall_of_every_process(partial, nlohmann::json::parse(read_text(killed / "summary.json")));
   for (const char* name : kResults)
     EXPECT_EQ(read_text(whole / name), read_text(killed / name)) << name;
   std::size_t frames = 0;

@@ -11,7 +11,7 @@ namespace {
 
 // The head's first bytes, with the format's version: a checkpoint from
 // another version of the format is refused, never misread.
-constexpr std::string_view kMagic = "ces-sim checkpoint 4\n";
+constexpr std::string_view kMagic = "ces-sim checkpoint 5\n";
 
 }  // namespace
 

@@ -200,6 +200,7 @@ class Runner {
   void write_summary(const output::RunRecord& r);
   void write_report(const output::RunRecord& r, const std::string& distribution_svg);
   std::vector<std::string> files() const;
+  double wall() const { return wall_before_ + seconds_since(start_); }
   output::RunRecord record() const;
   void tally_feeds(output::RunRecord& r) const;
   void tally_active(output::RunRecord& r) const;
@@ -215,6 +216,7 @@ class Runner {
   ThreadGovernor threads_;
   std::uint64_t checkpoint_steps_;  // steps between checkpoints; 0: none
   double output_seconds_ = 0.0;  // the output stage's, and the writing before and after the steps
+  double wall_before_ = 0.0;     // the wall time of a resumed run's earlier processes
   double watched_at_ = 0.0;      // wall time of the caller's last on_progress
   int stop_signal_ = 0;          // the signal that stopped the steps
   bool complete_ = false;
@@ -268,6 +270,8 @@ void Runner::start() {
     ByteReader in(*resume_);
     world_.load(in);
     observers_.load(in);
+    in.value(wall_before_);
+    in.value(output_seconds_);
     if (!in.at_end()) throw CorruptData("the checkpoint holds more than this scene's run");
     return;
   }
@@ -345,6 +349,11 @@ void Runner::checkpoint() {
   ByteWriter body;
   world_.save(body);
   observers_.save(body);
+  // The run's wall time and output stage so far, which the other stages'
+  // tallies (observers_) carry on their own: a resumed run's summary counts
+  // every process it took.
+  body.value(wall());
+  body.value(output_seconds_);
   write_checkpoint(dir_ / "checkpoint.bin",
                    {sim_.scene_path, sim_.scene_hash, sim_.resolved_yaml, body.bytes()});
   output::write_file_atomic(dir_ / "summary.json", output::summary_json(record()));
@@ -392,7 +401,7 @@ void Runner::write_outputs() {
     failed(e);
   }
   r.solver.seconds[Stage::Output] += seconds_since(t0);
-  r.wall = seconds_since(start_);
+  r.wall = wall();
   output::add_warnings(r);
   try {
     write_report(r, distribution);
@@ -464,7 +473,7 @@ output::RunRecord Runner::record() const {
   r.threads = threads_.max_threads();
   r.threads_adaptive = threads_.adaptive();
   r.steps_at_threads = threads_.steps_at();
-  r.wall = seconds_since(start_);
+  r.wall = wall();
   r.solver = observers_.solver();
   // The steps' own, complete only once each step returned, and the writing
   // outside them.
