@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <thread>
 
 #include "output/compare.hpp"
 #include "study/study.hpp"
@@ -175,6 +176,35 @@ TEST(Study, ListAndSelectCases) {
   EXPECT_EQ(test::ces_sim(base + " --case 3").code, 2);  // out of range
 }
 
+// A scheduler's --case commands name the scene and the folders absolute; the
+// measuring command may name them relative to where it runs, and still
+// finds the cases they ran, and runs none of them again.
+TEST(Study, ARelativeCommandFindsTheCasesTheSchedulerRan) {
+  const path dir = test::fresh_dir("study_relative");
+  const std::string absolute = "study " + kScene + kSteps + " -o " + dir.string();
+  for (int k = 0; k < 3; ++k)
+    ASSERT_EQ(test::ces_sim(absolute + " --case " + std::to_string(k)).code, 0);
+  const auto stamp = test::fs::last_write_time(dir / "case_0" / "summary.json");
+  const std::string relative = "study " + test::fs::relative(kScene).string() + kSteps + " -o " +
+                               test::fs::relative(dir).string();
+  ASSERT_EQ(test::ces_sim(relative).code, 0);
+  EXPECT_EQ(test::fs::last_write_time(dir / "case_0" / "summary.json"), stamp);
+  EXPECT_TRUE(test::fs::exists(dir / "study.csv"));
+}
+
+// The commands a scheduler runs carry the study's --include-path.
+TEST(Study, SchedulersPassOnTheIncludePaths) {
+  const path dir = test::fresh_dir("study_scheduled");
+  const std::string folder = std::string(CES_TEST_DIR) + "/scenes";
+  const test::Outcome r = test::ces_sim("study " + kScene + kSteps + " --include-path " + folder +
+                                        " --scheduler slurm -o " + dir.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string commands = test::read_text(dir / "cases.sh");
+  EXPECT_NE(commands.find("'--include-path' '" + test::fs::weakly_canonical(folder).string() + "'"),
+            std::string::npos)
+      << commands;
+  EXPECT_NE(r.out.find("--include-path"), std::string::npos) << r.out;
+}
 
 // study.csv without its wall_time_s column: everything a study measures
 // but the time it took, which no two runs share.
@@ -218,6 +248,10 @@ TEST(Study, GnuParallelGivesTheSerialStudy) {
   ASSERT_EQ(r.code, 0) << r.err;
   const std::string commands = test::read_text(dir / "cases.sh");
   EXPECT_EQ(std::count(commands.begin(), commands.end(), '\n'), 3);
+  // Each case's share of the cores, 2 jobs at a time.
+  const int share = std::max(1, int(std::thread::hardware_concurrency()) / 2);
+  EXPECT_NE(commands.find("'--threads' '" + std::to_string(share) + "'"), std::string::npos)
+      << commands;
   expect_same_study(serial, dir, 3);
 }
 

@@ -40,6 +40,10 @@ std::vector<std::string> split(const std::string& s, char sep) {
   return out;
 }
 
+// A path as every command of a study names it: absolute, with no '..' or
+// link left in it, whatever the folder the command runs in.
+std::string full_path(const fs::path& p) { return fs::weakly_canonical(fs::absolute(p)).string(); }
+
 fs::path case_dir(const Options& o, const Case& c) {
   return o.out_dir / ("case_" + std::to_string(c.index));
 }
@@ -68,14 +72,18 @@ bool already_done(const Options& o, const Case& c) {
 
 int cores() { return std::max(1, int(std::thread::hardware_concurrency())); }
 
+// Each case's threads: --threads, else its share of the cores (cases share
+// them, --jobs at a time).
+int case_threads(const Options& o) {
+  const int jobs = o.jobs > 0 ? o.jobs : cores();
+  return o.threads.value_or(std::max(1, cores() / jobs));
+}
+
 pid_t spawn(const Options& o, const Case& c) {
   const fs::path dir = case_dir(o, c);
   fs::create_directories(dir);
   std::vector<std::string> args = case_arguments(o, c);
-  // Cases share the cores: without a choice, each gets its share.
-  const int jobs = o.jobs > 0 ? o.jobs : cores();
-  const int threads = o.threads.value_or(std::max(1, cores() / jobs));
-  args.insert(args.end(), {"--threads", std::to_string(threads)});
+  args.insert(args.end(), {"--threads", std::to_string(case_threads(o))});
   const std::string log = (dir / "log.txt").string();
   std::vector<char*> argv{const_cast<char*>(o.binary.c_str())};
   for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
@@ -149,7 +157,7 @@ ProductFigures main_material_figures(const fs::path& file) {
 // --jobs and --scheduler: what every case command and the final measuring
 // command share.
 std::vector<std::string> study_arguments(const Options& o) {
-  std::vector<std::string> args{fs::absolute(o.scene).string()};
+  std::vector<std::string> args{full_path(o.scene)};
   for (const Axis& a : o.axes) {
     std::string values;
     for (const std::string& v : a.values) values += (values.empty() ? "" : ",") + v;
@@ -159,8 +167,10 @@ std::vector<std::string> study_arguments(const Options& o) {
   for (const auto& [k, v] : o.base_sets) args.insert(args.end(), {"--set", k + "=" + v});
   if (o.seed) args.insert(args.end(), {"--seed", std::to_string(*o.seed)});
   if (o.threads) args.insert(args.end(), {"--threads", std::to_string(*o.threads)});
-  if (!o.reference.empty()) args.insert(args.end(), {"--reference", fs::absolute(o.reference).string()});
-  args.insert(args.end(), {"-o", fs::absolute(o.out_dir).string()});
+  if (!o.reference.empty()) args.insert(args.end(), {"--reference", full_path(o.reference)});
+  for (const std::string& folder : o.include_paths)
+    args.insert(args.end(), {"--include-path", full_path(folder)});
+  args.insert(args.end(), {"-o", full_path(o.out_dir)});
   return args;
 }
 
@@ -190,7 +200,11 @@ constexpr const char* kCommands = "cases.sh";  // one command per case (case_com
 // missing or a case failed.
 bool run_with_parallel(const Options& o) {
   fs::create_directories(o.out_dir);
-  output::write_file_atomic(o.out_dir / kCommands, case_commands(o));
+  // Each --case process runs one case alone: it is told the share of the
+  // cores that this study's --jobs leaves it.
+  Options each = o;
+  each.threads = case_threads(o);
+  output::write_file_atomic(o.out_dir / kCommands, case_commands(each));
   const int jobs = o.jobs > 0 ? o.jobs : cores();
   const std::string command = "parallel --will-cite --jobs " + std::to_string(jobs) +
                               " --halt never < " + shell_quoted((o.out_dir / kCommands).string());
@@ -394,7 +408,11 @@ std::vector<Case> make_cases(const std::vector<Axis>& axes) {
 }
 
 std::vector<std::string> case_arguments(const Options& o, const Case& c) {
-  std::vector<std::string> args{o.scene, "-o", case_dir(o, c).string(), "--quiet"};
+  // Absolute paths: the command is the case's stamp (already_done), the
+  // same from this study and from a scheduler's --case process, which is
+  // given them absolute.
+  std::vector<std::string> args{full_path(o.scene), "-o",
+                                full_path(case_dir(o, c)), "--quiet"};
   for (const std::string& k : o.base_unsets) args.insert(args.end(), {"--unset", k});
   for (const Sets* sets : {&o.base_sets, &c.sets})
     for (const auto& [k, v] : *sets) {
@@ -403,7 +421,7 @@ std::vector<std::string> case_arguments(const Options& o, const Case& c) {
     }
   if (o.seed) args.insert(args.end(), {"--seed", std::to_string(*o.seed)});
   for (const std::string& folder : o.include_paths)
-    args.insert(args.end(), {"--include-path", folder});
+    args.insert(args.end(), {"--include-path", full_path(folder)});
   return args;
 }
 
@@ -567,7 +585,7 @@ std::string slurm_script(const Options& o) {
          "#SBATCH --job-name=ces-study\n"
          "#SBATCH --array=0-" + std::to_string(n - 1) + "\n"
          "#SBATCH --ntasks=1\n"
-         "#SBATCH --output=" + fs::absolute(o.out_dir).string() + "/slurm-%A_%a.out\n"
+         "#SBATCH --output=" + full_path(o.out_dir) + "/slurm-%A_%a.out\n"
          "set -euo pipefail\n"
          "line=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" " + shell_quoted(commands.string()) +
          ")\n"
