@@ -18,13 +18,18 @@ namespace py = pybind11;
 using namespace pybind11::literals;
 
 // The unit suffixes of docs/outputs.md, and study.csv's mm.
-constexpr std::array<std::string_view, 9> kUnits = {"_m",   "_mm", "_s", "_kg", "_mps",
-                                                    "_c",   "_vpm", "_v", "_J"};
+constexpr std::array<std::string_view, 10> kUnits = {"_m", "_mm",  "_s", "_kg", "_mps",
+                                                     "_c", "_vpm", "_v", "_J",  "_radps"};
 // Columns that name things: text, even where every name looks like a number.
 constexpr std::array<std::string_view, 6> kNames = {"collector", "product", "material",
                                                     "main_material", "reason", "shape"};
-// Columns of fractions: numbers, even where every cell is 0 or 1.
-constexpr std::array<std::string_view, 2> kFractions = {"grade", "recovery"};
+// Columns of fractions, ratios and a quaternion's parts: numbers, even
+// where every cell is a whole number.
+constexpr std::array<std::string_view, 11> kFractions = {
+    "grade", "recovery", "grade_error", "recovery_error", "max_penetration_rel",
+    "max_wall_penetration_rel", "max_penetration_relative", "qw", "qx", "qy", "qz"};
+// study.csv's distances, one column per material and collector.
+constexpr std::string_view kDistancePrefix = "w1_mm ";
 
 bool is_one_of(std::string_view name, const auto& names) {
   return std::find(names.begin(), names.end(), name) != names.end();
@@ -55,7 +60,8 @@ Kind kind_of(std::string_view cell) {
 // type in every scene and every run, whatever its cells happen to be.
 Kind narrowest(std::string_view name) {
   if (is_one_of(name, kNames)) return kText;
-  if (has_unit(name) || is_one_of(name, kFractions)) return kNumber;
+  if (has_unit(name) || is_one_of(name, kFractions) || name.starts_with(kDistancePrefix))
+    return kNumber;
   return kInteger;
 }
 

@@ -264,7 +264,7 @@ void define_scene(py::module_& m) {
       .def("run", &run_scene, "out_dir"_a = py::none(), py::kw_only(), "threads"_a = py::none(),
            "progress"_a = py::none(), "progress_every"_a = 1.0,
            "Runs the scene into out_dir (default: its output.dir) as ces-sim does, with "
-           "threads worker threads (default: the scene's, else chosen as the run goes). "
+           "threads worker threads (default: chosen as the run goes). "
            "progress(time, particles, fraction) is called every progress_every s of wall "
            "time and after the last step; returning False stops the run. Returns a Result; "
            "raises RunError when the run fails, KeyboardInterrupt on Ctrl-C.")

@@ -100,6 +100,16 @@ class RunTest(Case):
         self.assertEqual(kinds["from_m"], float)
         self.assertEqual(kinds["mass_kg"], float)
 
+    def test_ratios_spins_and_distances_are_floats_even_when_whole(self):
+        path = self.dir / "t.csv"
+        path.write_text("qw,wx_radps,max_penetration_rel,grade_error,w1_mm fr4 at bins,count\n"
+                        "1,0,0,0,2,3\n")
+        table = ces_sim.read_csv(path)
+        kinds = {name: type(as_list(values)[0]) for name, values in table.items()}
+        for name in ("qw", "wx_radps", "max_penetration_rel", "grade_error", "w1_mm fr4 at bins"):
+            self.assertEqual(kinds[name], float, name)
+        self.assertEqual(kinds["count"], int)
+
     def test_summary_is_summary_json(self):
         result = ces_sim.load(TINY, seed=5).run(self.dir / "run")
         self.assertTrue(result.summary["complete"])

@@ -210,7 +210,8 @@ CLI::App* add_study_command(CLI::App& app, Args& args, StudyArgs& study) {
       ->required();
   cmd->add_option("--reference", study.options.reference,
                   "Output folder to measure against (default: the finest case: DVI before DEM, "
-                  "smallest time.step, then largest solver.max_iterations)");
+                  "smallest time.step, then smallest solver.tolerance and "
+                  "solver.penetration_tolerance, then largest solver.max_iterations)");
   cmd->add_option("-o,--out", study.options.out_dir, "Study folder (default: study)");
   cmd->add_option("--jobs", study.options.jobs, "Cases at once (default: the number of cores)")
       ->check(CLI::PositiveNumber);
@@ -324,7 +325,8 @@ int main(int argc, char** argv) {
                           "Particles a bin or product may differ by (default 0)");
   compare_cmd
       ->add_option("--tol-mass", args.tolerances.tol_mass,
-                   "Mass difference per cell as a fraction of the material's collected mass; "
+                   "Mass difference per cell as a fraction of that material's total over the "
+                   "collector's rows of the file (the larger of the two folders'); "
                    "also the absolute tolerance on grade and recovery (default 0)")
       ->check(CLI::NonNegativeNumber);
   compare_cmd

@@ -32,7 +32,7 @@ struct RunRecord {
   std::string reason;
   std::uint64_t steps = 0;
   double time = 0.0;  // simulated (s)
-  int threads = 1;              // the most a step used
+  int threads = 1;              // the most a step may use
   bool threads_adaptive = false;  // chosen step by step (sim/threads.hpp)
   std::vector<std::uint64_t> steps_at_threads;  // index = thread count
   double wall = 0.0;  // s

@@ -3,7 +3,8 @@
 // A study runs one scene over every combination of --vary axes (each a list
 // of --set values), each case a normal run in DIR/case_K, and measures every
 // run against a reference: the finest case (DVI before DEM, smallest
-// time.step, then largest solver.max_iterations) or a given output folder. Errors are what users
+// time.step, then smallest solver.tolerance and penetration_tolerance, then
+// largest solver.max_iterations) or a given output folder. Errors are what users
 // care about: the landing distribution per "material at collector"
 // (Wasserstein-1, mm), products' grade and recovery (max abs difference) and
 // the particle mass balance. Results: DIR/study.csv, DIR/study.svg (error vs
