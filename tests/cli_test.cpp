@@ -179,6 +179,26 @@ TEST(Cli, BadArgumentsExitTwo) {
   EXPECT_EQ(ces_sim("compare /nonexistent/a /nonexistent/b").code, 2);
 }
 
+// Numbers on the command line are checked as written: a negative count is
+// not wrapped into a huge tolerance, NaN is no tolerance, and the message
+// names the option, the text and the range.
+TEST(Cli, NumbersOutOfRangeAreRefusedAsWritten) {
+  const std::pair<std::string, std::string> cases[] = {
+      {"compare a b --tol-count -1", "--tol-count: got '-1', expected a whole number >= 0"},
+      {"compare a b --tol-count 2.5", "--tol-count: got '2.5', expected a whole number >= 0"},
+      {"compare a b --tol-mass nan", "--tol-mass: got 'nan', expected a number >= 0"},
+      {"compare a b --tol-w1 -1", "--tol-w1: got '-1', expected a number >= 0"},
+      {"study " + scene("tiny.yaml") + " --vary seed=1,2 --jobs 0",
+       "--jobs: got '0', expected a whole number >= 1"},
+      {scene("tiny.yaml") + " --seed -1", "--seed: got '-1', expected a whole number >= 0"},
+  };
+  for (const auto& [args, message] : cases) {
+    const Outcome o = ces_sim(args);
+    EXPECT_EQ(o.code, 2) << args;
+    EXPECT_NE(o.err.find(message), std::string::npos) << args << "\n" << o.err;
+  }
+}
+
 // Scenes past a bound are refused before anything runs: by validate and
 // by a run alike, exit 2, one line per problem, no output folder made.
 TEST(Cli, HostileScenesAreRefusedByValidateAndByRun) {

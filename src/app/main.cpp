@@ -69,13 +69,31 @@ struct Args {
   ces::output::CompareOptions tolerances;
 };
 
+// A finite number, whole if asked, at least `least`. CLI11's own checks let
+// NaN through, wrap a negative count into a huge one, and print their
+// bounds with 310 digits.
+CLI::Validator at_least(double least, bool whole) {
+  const std::string what = std::string(whole ? "a whole number" : "a number") + " >= " +
+                           std::to_string(int(least));
+  return CLI::Validator(
+      [least, whole, what](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double x = std::strtod(text.c_str(), &end);
+        const bool number = end != text.c_str() && *end == '\0' && std::isfinite(x);
+        if (number && x >= least && (!whole || x == std::floor(x))) return "";
+        return "got '" + text + "', expected " + what;
+      },
+      what);
+}
+
 void add_scene_options(CLI::App& app, Args& args) {
   app.add_option("--set", args.sets, "Override a scene value before validation: key.path=value")
       ->type_name("K=V");
   app.add_option("--unset", args.unsets,
                  "Remove a scene key or list item before the --set values: key.path")
       ->type_name("K");
-  app.add_option("--seed", args.seed, "Random seed (wins over the scene's)");
+  app.add_option("--seed", args.seed, "Random seed (wins over the scene's)")
+      ->check(at_least(0, true));
   app.add_option("--threads", args.threads, "Worker threads (1 to 1024)")
       ->check(CLI::Range(1, 1024));
   app.add_option("--include-path", args.include_paths,
@@ -214,7 +232,7 @@ CLI::App* add_study_command(CLI::App& app, Args& args, StudyArgs& study) {
                   "solver.penetration_tolerance, then largest solver.max_iterations)");
   cmd->add_option("-o,--out", study.options.out_dir, "Study folder (default: study)");
   cmd->add_option("--jobs", study.options.jobs, "Cases at once (default: the number of cores)")
-      ->check(CLI::PositiveNumber);
+      ->check(at_least(1, true));
   cmd->add_option("--case", study.only_case, "Run only case K (see --list-cases)");
   cmd->add_option("--scheduler", study.scheduler,
                   "Who runs the cases: local (this process, --jobs at a time), parallel (GNU "
@@ -321,18 +339,20 @@ int main(int argc, char** argv) {
       app.add_subcommand("compare", "Do two output folders agree within tolerances?");
   compare_cmd->add_option("dir_a", args.dir_a, "Output folder A")->required();
   compare_cmd->add_option("dir_b", args.dir_b, "Output folder B")->required();
-  compare_cmd->add_option("--tol-count", args.tolerances.tol_count,
-                          "Particles a bin or product may differ by (default 0)");
+  compare_cmd
+      ->add_option("--tol-count", args.tolerances.tol_count,
+                   "Particles a bin or product may differ by (default 0)")
+      ->check(at_least(0, true));
   compare_cmd
       ->add_option("--tol-mass", args.tolerances.tol_mass,
                    "Mass difference per cell as a fraction of that material's total over the "
                    "collector's rows of the file (the larger of the two folders'); "
                    "also the absolute tolerance on grade and recovery (default 0)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(at_least(0, false));
   compare_cmd
       ->add_option("--tol-w1", args.tolerances.tol_w1_mm,
                    "Wasserstein-1 distance (mm) between landing distributions (default 0)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(at_least(0, false));
   CLI::App* resume_cmd = app.add_subcommand(
       "resume", "Continue an unfinished run from its checkpoint (scenes with output.checkpoint)");
   resume_cmd->add_option("dir", args.dir_a, "The run's output folder (it holds partial/)")
