@@ -15,11 +15,13 @@
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
+#include <limits>
 #include <tuple>
 
 #include "sim/world.hpp"
 #include "feed/feeder.hpp"
 #include "collect/collection.hpp"
+#include "common/tally.hpp"
 #include "output/compare.hpp"
 #include "output/files.hpp"
 
@@ -381,6 +383,22 @@ TEST(RunBalance, FedEqualsCollectedPlusLostPlusActiveExactly) {
   EXPECT_TRUE(s["complete"].get<bool>());
   EXPECT_EQ(s["steps"].get<int>(), 150);
   EXPECT_EQ(s["seed"].get<int>(), 3);
+}
+
+// A particle's mass in the exact tally: as llround gives it below 9.2 kg,
+// and past that (where llround wraps) still the mass, to the unit.
+TEST(RunBalance, TheTallyHoldsEveryMassAFeedMayMake) {
+  for (const double kg : {1e-18, 3.7e-9, 4.02929489e-05, 9.0})
+    EXPECT_EQ(to_mass_units(kg), MassUnits(std::llround(kg / kMassUnit))) << kg;
+  for (const double kg : {22.0893233, 1e3, kMaxParticleMass}) {
+    EXPECT_NEAR(to_kg(to_mass_units(kg)), kg, 1e-15 * kg) << kg;
+    Tally t;
+    for (int k = 0; k < 10'000'000; k += 1'000'000) t.add(to_mass_units(kg));
+    EXPECT_NEAR(t.kg(), 10 * kg, 1e-15 * 10 * kg) << kg;
+  }
+  EXPECT_FALSE(tally_holds(0.5e-18));
+  EXPECT_FALSE(tally_holds(2e9));
+  EXPECT_FALSE(tally_holds(std::numeric_limits<double>::quiet_NaN()));
 }
 
 TEST(RunOutputs, WritesEveryFileAtomicallyWithNoTemporariesLeft) {

@@ -5,7 +5,8 @@
 // integer number of 1e-18 kg (a 50 µm grain is ~1e8 units, so the rounding
 // is far below the printed 9 digits) and the same integer is added to "fed"
 // and later to exactly one of collected / lost / active. 128 bits hold any
-// conceivable feed; one particle may weigh up to 9 kg (the range of llround).
+// conceivable feed: a particle weighs from one unit to kMaxParticleMass
+// (tally_holds), and a run's 1e7 particles of that sum to far below 2^128.
 #pragma once
 #include <cmath>
 #include <cstdint>
@@ -16,7 +17,14 @@ __extension__ typedef unsigned __int128 MassUnits;
 
 inline constexpr double kMassUnit = 1e-18;  // kg
 
-inline MassUnits to_mass_units(double kg) { return MassUnits(std::llround(kg / kMassUnit)); }
+inline constexpr double kMaxParticleMass = 1e9;  // kg
+
+// Whether one particle's mass is counted exactly: the feeds refuse others.
+inline bool tally_holds(double kg) { return kg >= kMassUnit && kg <= kMaxParticleMass; }
+
+// Rounded half away from zero, as llround, but in the 128 bits, so that a
+// particle past llround's 9 kg is not wrapped.
+inline MassUnits to_mass_units(double kg) { return MassUnits(std::round(kg / kMassUnit)); }
 inline double to_kg(MassUnits units) { return double(units) * kMassUnit; }
 
 struct Tally {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 #include <sstream>
@@ -11,6 +12,13 @@
 
 namespace ces::feed {
 namespace {
+
+// A number in a message, to 6 significant digits.
+std::string number(double x) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", x);
+  return text;
+}
 
 const ParticleShape& shape_of(const Model& model, const FeedComponent& c) {
   return model.shapes.at(std::size_t(c.shape));
@@ -138,10 +146,12 @@ Feeder::Candidate Feeder::draw_candidate() {
     c.mass = particle_mass(*model_, comp.shape, c.scale, comp.material);
     c.inertia = c.mass * c.scale * c.scale * shape_of(*model_, comp).unit_inertia;
   }
-  if (!(std::isfinite(c.mass) && c.mass > 0.0))
-    throw std::runtime_error("feed '" + feed_.name + "': a particle of size " +
-                             std::to_string(size) + " m has mass " + std::to_string(c.mass) +
-                             " kg (check its size distribution, shape size and density)");
+  if (!tally_holds(c.mass))
+    throw std::runtime_error("feed '" + feed_.name + "': a particle of size " + number(size) +
+                             " m has mass " + number(c.mass) + " kg, expected " +
+                             number(kMassUnit) + " to " + number(kMaxParticleMass) +
+                             " kg, the masses the balance counts exactly (check its size "
+                             "distribution, shape size and density)");
   const double radius = c.scale * model_->shapes.at(std::size_t(c.shape)).bounding_radius;
   if (radius > max_bounding_radius_) {
     max_bounding_radius_ = radius;
