@@ -36,6 +36,10 @@ TEST(Study, CasesAreTheGridLastAxisFastest) {
   EXPECT_EQ(cases[4].sets, (study::Sets{{"time.step", "1ms"}, {"solver.method", "spg"}}));
   EXPECT_THROW(study::parse_axis("time.step"), std::invalid_argument);
   EXPECT_THROW(study::parse_axis("time.step=1ms,,2ms"), std::invalid_argument);
+  EXPECT_THROW(study::parse_axis("time.step=1ms,1ms"), std::invalid_argument);
+  EXPECT_THROW(study::parse_axes({"time.step=1ms,0.5ms", "seed:time.step=1:2ms"}),
+               std::invalid_argument);
+  EXPECT_EQ(study::parse_axes({"time.step=1ms", "seed=1,2"}).size(), 2u);
 }
 
 // Each case runs the scene as the study does, with the same --include-path:

@@ -256,7 +256,7 @@ int study(const Args& args, StudyArgs& study) {
     o.threads = args.threads;
     o.only_case = study.only_case;
     o.scheduler = ces::study::parse_scheduler(study.scheduler);
-    for (const std::string& v : study.vary) o.axes.push_back(ces::study::parse_axis(v));
+    o.axes = ces::study::parse_axes(study.vary);
     if (study.list) {
       std::fputs(ces::study::list_cases(o).c_str(), stdout);
       return kSuccess;

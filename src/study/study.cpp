@@ -383,8 +383,28 @@ Axis parse_axis(const std::string& spec) {
       throw std::invalid_argument("--vary " + spec + ": '" + v + "' has " +
                                   std::to_string(parts.size()) + " values for " +
                                   std::to_string(keys) + " keys");
+    if (std::count(a.values.begin(), a.values.end(), v) > 1)
+      throw std::invalid_argument("--vary " + spec + ": '" + v +
+                                  "' twice, expected each value once (two cases would be one)");
   }
   return a;
+}
+
+std::vector<Axis> parse_axes(const std::vector<std::string>& specs) {
+  std::vector<Axis> axes;
+  std::vector<std::string> keys;
+  for (const std::string& spec : specs) {
+    axes.push_back(parse_axis(spec));
+    for (const std::string& k : axis_keys(axes.back())) {
+      // The later --set of a key wins: a key on two axes would label
+      // cases by values none of them ran with.
+      if (std::find(keys.begin(), keys.end(), k) != keys.end())
+        throw std::invalid_argument("--vary " + spec + ": '" + k +
+                                    "' is varied twice, expected each key on one axis");
+      keys.push_back(k);
+    }
+  }
+  return axes;
 }
 
 std::vector<std::string> axis_keys(const Axis& a) { return split(a.key, ':'); }

@@ -37,6 +37,8 @@ struct Axis {
 };
 // "key.path=v1,v2,..." or "k1:k2=a1:a2,b1:b2"; throws std::invalid_argument.
 Axis parse_axis(const std::string& spec);
+// The --vary axes, each key on one of them only.
+std::vector<Axis> parse_axes(const std::vector<std::string>& specs);
 std::vector<std::string> axis_keys(const Axis& a);
 
 struct Case {
