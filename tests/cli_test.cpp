@@ -209,6 +209,7 @@ TEST(Cli, HostileScenesAreRefusedByValidateAndByRun) {
       {"alias_bomb.yaml", "alias_bomb.yaml:4:"},
       {"include_outside.yaml", "include_outside.yaml:4:5: include: '/etc/passwd' is outside"},
       {"integer_wraps.yaml", "integer_wraps.yaml:3:26: solver.max_iterations: 2147483648"},
+      {"two_documents.yaml", "two_documents.yaml:4:1: a second YAML document"},
   };
   for (const auto& [file, message] : cases) {
     SCOPED_TRACE(file);

@@ -200,6 +200,8 @@ const Expected kExpectations[] = {
     {"integer_wraps.yaml", "integer_wraps.yaml", 3,
      "solver.max_iterations: 2147483648 is out of range, expected <= 1000000"},
     {"invalid_utf8.yaml", "invalid_utf8.yaml", 3, "invalid UTF-8 (byte 0xa1), expected UTF-8 text"},
+    {"two_documents.yaml", "two_documents.yaml", 4,
+     "a second YAML document (after '---' or '...'), expected one scene"},
     {"key_too_long.yaml", "key_too_long.yaml", 4, "a key path longer than 256 characters"},
     {"nesting_too_deep.yaml", "nesting_too_deep.yaml", 3, "nested deeper than 32 levels"},
     {"number_overflow.yaml", "number_overflow.yaml", 3,

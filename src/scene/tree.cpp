@@ -1,5 +1,6 @@
 #include "scene/tree.hpp"
 
+#include <vector>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -345,7 +346,17 @@ std::optional<Node> parse(const std::string& text, const std::string& file, bool
     if (!nlohmann::json::sax_parse(text, &checker) && checker.reported()) return std::nullopt;
   }
   try {
-    const YAML::Node root = YAML::Load(text);
+    // One document: yaml-cpp's Load would read the first and drop what
+    // follows a '---' or '...' unseen, however wrong.
+    const std::vector<YAML::Node> documents = YAML::LoadAll(text);
+    if (documents.size() > 1) {
+      const YAML::Mark at = documents[1].Mark();
+      const bool known = at.line >= 0;
+      diags.error({file, known ? at.line + 1 : 1, known ? at.column + 1 : 1}, "",
+                  "a second YAML document (after '---' or '...'), expected one scene");
+      return std::nullopt;
+    }
+    const YAML::Node root = documents.empty() ? YAML::Node() : documents.front();
     Converter converter(text, file, budget, diags);
     Node tree = converter.convert(root, {file, 1, 1});
     if (converter.stopped()) return std::nullopt;
