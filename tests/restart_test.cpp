@@ -247,10 +247,22 @@ TEST(Restart, ResumeRefusesAMissingOrDamagedCheckpoint) {
   const fs::path dir = fresh_dir("damaged");
   ASSERT_TRUE(kill_after_first_checkpoint(dir, std::chrono::milliseconds(0)));
   const fs::path file = dir / "partial" / "checkpoint.bin";
+  const std::string whole = read_text(file);
   fs::resize_file(file, fs::file_size(file) / 2);
   const Outcome damaged = ces_sim("resume " + dir.string());
   EXPECT_EQ(damaged.code, 2);
   EXPECT_NE(damaged.err.find("cannot resume"), std::string::npos) << damaged.err;
+
+  // One bit flipped anywhere past the head: in the scene's text, in the
+  // state, in the checksum itself.
+  for (const double at : {0.01, 0.3, 0.6, 0.95, 0.99999}) {
+    std::string flipped = whole;
+    flipped[std::size_t(at * double(flipped.size() - 1))] ^= 0x10;
+    std::ofstream(file, std::ios::binary) << flipped;
+    const Outcome bit = ces_sim("resume " + dir.string());
+    EXPECT_EQ(bit.code, 2) << at;
+    EXPECT_NE(bit.err.find("checksum does not match"), std::string::npos) << at << bit.err;
+  }
 }
 
 }  // namespace
