@@ -197,6 +197,26 @@ TEST(Restart, ACompleteRunRemovesOnlyTheEarlierRunsFiles) {
   EXPECT_FALSE(fs::exists(dir / "partial"));
 }
 
+// summary.json is text anyone may edit: an earlier one that lists folders
+// ('.', 'sub/', 'trajectories', 'partial') or a path out of the folder has
+// none of them removed, and the new run completes in its place.
+TEST(Restart, AnEarlierSummaryListingFoldersRemovesNoneOfThem) {
+  const fs::path dir = fresh_dir("listed_folders");
+  ASSERT_EQ(ces_sim(kTiny + " -o " + dir.string() + " --quiet").code, 0);
+  fs::create_directories(dir / "sub");
+  std::ofstream(dir / "sub" / "mine.txt") << "mine";
+  nlohmann::json summary = nlohmann::json::parse(read_text(dir / "summary.json"));
+  for (const char* name : {".", "./", "sub/", "sub", "trajectories", "partial", "../x", "/tmp"})
+    summary["files"].push_back(name);
+  std::ofstream(dir / "summary.json") << summary.dump();
+  const Outcome o = ces_sim(kTiny + " -o " + dir.string() + " --quiet");
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_TRUE(nlohmann::json::parse(read_text(dir / "summary.json"))["complete"].get<bool>());
+  EXPECT_EQ(read_text(dir / "sub" / "mine.txt"), "mine");
+  EXPECT_TRUE(fs::exists(dir / "trajectories" / "frame_000001.vtp"));
+  EXPECT_FALSE(fs::exists(dir / "partial"));
+}
+
 // Each output that cannot be written is named in the reason, in the order
 // they failed: a frame mid-run (its temporary's place taken by a folder),
 // then bins.csv among the outputs written at the end. A later failure adds

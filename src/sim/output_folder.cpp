@@ -9,11 +9,15 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A listed name a run may have written: relative, and inside the folder.
+// A listed name a run may have written: a file's path, relative, inside
+// the folder and not in its partial/ (a summary.json is text anyone may
+// edit: '.', '..', 'sub/' or 'partial' name no file a run wrote).
 bool safe_relative(const std::string& name) {
   const fs::path p(name);
-  if (name.empty() || p.is_absolute()) return false;
-  return std::none_of(p.begin(), p.end(), [](const fs::path& part) { return part == ".."; });
+  if (name.empty() || p.is_absolute() || p.filename().empty() || *p.begin() == "partial")
+    return false;
+  return std::none_of(p.begin(), p.end(),
+                      [](const fs::path& part) { return part == ".." || part == "."; });
 }
 
 // What an unfinished run may have left in its work folder: the files its
@@ -89,8 +93,12 @@ void OutputFolder::publish(const std::vector<std::string>& files) const {
       fs::create_directories((dir_ / f).parent_path());
       fs::rename(work_ / f, dir_ / f);
     }
-    for (const std::string& f : earlier)
-      if (std::find(files.begin(), files.end(), f) == files.end()) fs::remove(dir_ / f);
+    for (const std::string& f : earlier) {
+      // Only a file: a folder of that name is someone else's.
+      const fs::file_status status = fs::symlink_status(dir_ / f);
+      const bool file = fs::is_regular_file(status) || fs::is_symlink(status);
+      if (file && std::find(files.begin(), files.end(), f) == files.end()) fs::remove(dir_ / f);
+    }
     fs::rename(work_ / "summary.json", dir_ / "summary.json");
     clear_work(work_);
   } catch (const fs::filesystem_error& e) {
