@@ -26,6 +26,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <new>
 #include <optional>
 #include <string>
 #include <vector>
@@ -306,6 +307,11 @@ int dispatch(const CLI::App& app, const CLI::App* validate_cmd, const CLI::App* 
   } catch (const ces::CorruptData& e) {
     std::fprintf(stderr, "ces-sim: cannot resume: %s\n", e.what());
     return kBadInput;
+  } catch (const std::bad_alloc&) {
+    // Outside the steps (which record it in summary.json): setting up, or
+    // writing the outputs of a run that ran out.
+    std::fprintf(stderr, "ces-sim: out of memory (the machine's, or a limit on this process)\n");
+    return kRunFailed;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "ces-sim: internal error: %s\n", e.what());
     return kInternalError;

@@ -288,6 +288,10 @@ RunResult Runner::run() {
   try {
     start();
     step_to_end();
+  } catch (const std::bad_alloc&) {
+    reason_ = "error after " + std::to_string(world_.step_count()) + " steps (t = " +
+              output::format_number(world_.time()) + " s): out of memory with " +
+              std::to_string(world_.particles().size()) + " particles in the run";
   } catch (const std::exception& e) {
     reason_ = "error after " + std::to_string(world_.step_count()) +
               " steps (t = " + output::format_number(world_.time()) + " s): " + e.what();
