@@ -85,7 +85,8 @@ class Feeder {
   bool overlaps_particles(const State& state, const Candidate& c, const Vec3& x,
                           const Quat& q) const;
   void find_neighbours(const State& state);
-  // neighbours_ by cell of grid_, made by find_neighbours.
+  void grid_neighbours(const Particles& p);
+  // neighbours_ by cell of grid_, cells at least `reach` wide.
   void sort_neighbours(const Particles& p, double reach);
   template <class Fn>
   void for_each_neighbour_near(const Vec3& x, Fn&& fn) const;
@@ -105,7 +106,8 @@ class Feeder {
   // cell of a grid over the region, its cells at least as wide as a
   // candidate's reach to a neighbour: a candidate is checked against those
   // in the 27 cells around its own, not against all (thousands where the
-  // feed lays a monolayer). Those placed since are checked one by one.
+  // feed lays a monolayer). Those placed since are checked one by one, up
+  // to as many as the grid holds (place()).
   struct Grid {
     Vec3 min = Vec3::Zero();
     double inv_cell = 0.0;
@@ -116,6 +118,7 @@ class Feeder {
     // x's cell along axis k, or `shift` cells past it, clamped to the grid.
     std::size_t coord(const Vec3& x, int k, double shift = 0.0) const;
   } grid_;
+  static constexpr std::size_t kUngriddedMost = 4096;  // placed since, checked one by one
   bool neighbours_valid_ = false;        // found this step
   bool owing_ = false;                   // the last step deferred a particle
   std::vector<geo::SurfaceHit> hits_;    // scratch for body queries
