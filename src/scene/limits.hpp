@@ -30,6 +30,10 @@ inline constexpr std::uintmax_t kDataFileBytes = 256u << 20;
 // its volume, up to about a second.
 inline constexpr std::size_t kParticleShapes = 16;
 inline constexpr std::size_t kShapeSpheres = 1000;
+// A shape's extent over its smallest sphere's radius: a cluster wider than
+// this is no particle, and its volume integral (down to a 64th of the
+// smallest radius) loses the small spheres or overflows.
+inline constexpr double kShapeSpan = 1e4;
 // Materials (their pair table has one entry per ordered pair), and bin
 // tallies: bins of all collectors times materials, 32 bytes each.
 inline constexpr std::size_t kMaterials = 256;

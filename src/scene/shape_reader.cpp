@@ -13,6 +13,24 @@ namespace ces::scene {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+// The extent of a cluster's spheres along its widest axis over its smallest
+// radius; infinite where that is not a finite number.
+double shape_span(const feed::SphereList& list) {
+  Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);
+  double smallest = kInf;
+  for (std::size_t k = 0; k < list.centers.size(); ++k) {
+    lo = lo.cwiseMin(list.centers[k] - Vec3::Constant(list.radii[k]));
+    hi = hi.cwiseMax(list.centers[k] + Vec3::Constant(list.radii[k]));
+    smallest = std::min(smallest, list.radii[k]);
+  }
+  const double span = (hi - lo).maxCoeff() / smallest;
+  return std::isfinite(span) ? span : kInf;
+}
+
+}  // namespace
+
 ShapeReader::ShapeReader(const Node& root, fs::path scene_dir, Diagnostics& diags, Model& model,
                          std::vector<std::string>& shape_names)
     : root_(root),
@@ -207,10 +225,17 @@ std::optional<feed::SphereList> ShapeReader::cluster_spheres(const Node& entry) 
       list.radii.push_back(sphere.items[3].number());
     }
   }
-  if (list.centers.size() <= limits::kShapeSpheres) return list;
-  diags_.error(file ? *file : *spheres,
-               "a shape of " + std::to_string(list.centers.size()) + " spheres, expected at most " +
-                   std::to_string(limits::kShapeSpheres));
+  const Node& where = file ? *file : *spheres;
+  if (list.centers.size() > limits::kShapeSpheres) {
+    diags_.error(where, "a shape of " + std::to_string(list.centers.size()) +
+                            " spheres, expected at most " + std::to_string(limits::kShapeSpheres));
+    return std::nullopt;
+  }
+  const double span = shape_span(list);
+  if (span <= limits::kShapeSpan) return list;
+  diags_.error(where, "a shape " + format(span) +
+                          " of its smallest sphere's radii across, expected at most " +
+                          format(limits::kShapeSpan));
   return std::nullopt;
 }
 
@@ -221,6 +246,13 @@ std::optional<feed::SphereList> ShapeReader::cluster_spheres(const Node& entry) 
 int ShapeReader::add_shape(const ParticleShape& shape, const Node* entry,
                            const std::string& name) {
   const Node* size = entry ? entry->find("size") : nullptr;
+  // A size far from the spheres' own extent makes particles whose spheres
+  // are specks, or giants, of the size the feed draws.
+  const double ratio = size ? size->number() / (2.0 * shape.bounding_radius) : 1.0;
+  if (!(ratio <= limits::kShapeSpan && ratio >= 1.0 / limits::kShapeSpan))
+    diags_.error(*size, "size " + format(size->number()) + " is " + format(ratio) +
+                            " times the spheres' extent, expected within a factor " +
+                            format(limits::kShapeSpan) + " of it");
   if (size)
     sizes_.push_back(size->number());
   else if (entry)
