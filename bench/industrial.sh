@@ -10,17 +10,29 @@
 # time's maximum RSS), the memory per particle and per contact, and the
 # 1 -> 2 thread speed-up. Usage, from the repository root:
 #   bash bench/industrial.sh [END [SHORT]]
+#   bash bench/industrial.sh --resume    # the bench an interruption stopped
 # The runs are started at nice 10: on a shared machine they take what the
 # others leave, and the file says how loaded it was.
+# The full run writes a checkpoint every 0.05 s, so that a bench stopped
+# midway (the scene's 5 s take hours) goes on with --resume, from the full
+# run's last checkpoint, with the same binary; its summary counts the wall
+# time of every process it took.
 set -eu
 scene_end=5  # scenes/ces_industrial.yaml's time.end, in seconds
-end=${1:-$scene_end}
-short=${2:-0.1}
 bin=${CES_SIM:-build/ces-sim}
 scene=scenes/ces_industrial.yaml
 out=bench/out/industrial
 mkdir -p "$out"
 cores=$(nproc)
+resuming=false
+if [ "${1:-}" = --resume ]; then
+  [ -f "$out/bench.args" ] || { echo "bench/industrial.sh: no bench in $out to resume" >&2; exit 2; }
+  resuming=true
+  read -r end short < "$out/bench.args"
+else
+  end=${1:-$scene_end}
+  short=${2:-0.1}
+fi
 
 # One run: its folder, and GNU time's report beside it; more --set pairs
 # may follow.
@@ -34,21 +46,53 @@ run() {
     "$@" --threads "$threads" -q -o "$dir" > /dev/null
 }
 
-# The full run's checkpoint, copied as it appears (the run clears it when
-# it ends) into two folders that `ces-sim resume` continues.
+# The full run's checkpoint at AT, END less one span, copied as it
+# appears (the next one replaces it, and the run clears the last when it
+# ends) into two folders that `ces-sim resume` continues.
 span=0.05
-at=$(python3 -c "print(round($end - $span, 6)) if $end > 2 * $span else exit(1)") || {
-  echo "bench/industrial.sh: END must be over twice $span s" >&2
+at=$(python3 -c "
+n = $end / $span
+print(round($end - $span, 6)) if n > 2 and abs(n - round(n)) < 1e-9 else exit(1)") || {
+  echo "bench/industrial.sh: END must be a multiple of $span s, over twice it" >&2
   exit 2
 }
+checkpoint_at() {  # whether the full run's checkpoint is that at AT (it writes the summary after it)
+  python3 - "$out/full/partial" "$at" <<'PY'
+import json, pathlib, sys
+folder, at = pathlib.Path(sys.argv[1]), float(sys.argv[2])
+try:
+    t = json.loads((folder / "summary.json").read_text())["simulated_time_s"]
+except (OSError, ValueError, KeyError):
+    sys.exit(1)
+sys.exit(0 if (folder / "checkpoint.bin").exists() and abs(t - at) < 1e-9 else 1)
+PY
+}
 keep_checkpoint() {
-  local from=$out/full/partial
-  until [ -f "$from/checkpoint.bin" ]; do sleep 1; done
+  until checkpoint_at; do sleep 1; done
   for threads in 1 2; do
     rm -rf "$out/resume_$threads"
     mkdir -p "$out/resume_$threads"
-    cp -r "$from" "$out/resume_$threads/partial"
+    cp -r "$out/full/partial" "$out/resume_$threads/partial"
   done
+  touch "$out/resume.ready"
+}
+complete() {  # whether the run in folder $1 completed
+  python3 -c "import json, sys; sys.exit(0 if json.load(open(sys.argv[1])).get('complete') else 1)" \
+    "$1/summary.json" 2>/dev/null
+}
+# The full run: started afresh, or resumed from its last checkpoint, each
+# process under GNU time of its own (full.time, full.time.2, ...).
+full_run() {
+  if ! $resuming; then
+    run full "$cores" "$end" --set "output.checkpoint.every=${span}s"
+    return
+  fi
+  complete "$out/full" && return
+  local k=2
+  while [ -e "$out/full.time.$k" ]; do k=$((k + 1)); done
+  echo "nice -n 10 $bin resume $out/full --threads $cores -q" >> "$out/full.command"
+  /usr/bin/time -v -o "$out/full.time.$k" nice -n 10 "$bin" resume "$out/full" \
+    --threads "$cores" -q > /dev/null
 }
 resume() {
   local threads=$1 dir=$out/resume_$1
@@ -61,18 +105,29 @@ resume() {
 sample_load() {
   while :; do cut -d' ' -f1 /proc/loadavg >> "$out/load.txt"; sleep 10; done
 }
-rm -f "$out/load.txt"
+if ! $resuming; then
+  rm -f "$out/load.txt" "$out/resume.ready" "$out"/full.time.*
+  echo "$end $short" > "$out/bench.args"
+  date -u '+%Y-%m-%d %H:%M UTC' > "$out/start.txt"
+fi
 sample_load &
 sampler=$!
 keeper=
 trap 'kill $sampler $keeper 2>/dev/null || true' EXIT
 
-start=$(date -u '+%Y-%m-%d %H:%M UTC')
-run empty "$cores" 0.0005  # one step: the process without particles
-keep_checkpoint &
-keeper=$!
-run full "$cores" "$end" --set "output.checkpoint.every=${at}s"
-wait $keeper
+start=$(cat "$out/start.txt")
+$resuming || run empty "$cores" 0.0005  # one step: the process without particles
+if [ ! -e "$out/resume.ready" ]; then
+  if $resuming && complete "$out/full"; then
+    echo "bench/industrial.sh: the full run ended before its checkpoint at $at s was kept;" \
+      "run the bench afresh" >&2
+    exit 1
+  fi
+  keep_checkpoint &
+  keeper=$!
+fi
+full_run
+[ -z "$keeper" ] || wait $keeper
 resume 1
 resume 2
 # The short runs three times each, alternating: on a shared machine a busy

@@ -22,10 +22,15 @@ def summary(name):
 
 
 def peak_rss_bytes(name):
-    for line in (out / f"{name}.time").read_text().splitlines():
-        if "Maximum resident set size" in line:
-            return 1024 * int(line.split(":")[1])
-    raise SystemExit(f"no maximum resident set size in {name}.time")
+    """GNU time's maximum resident set of the run, the largest of its
+    processes' where it was resumed (NAME.time, NAME.time.2, ...)."""
+    peaks = []
+    for report in [out / f"{name}.time", *sorted(out.glob(f"{name}.time.*"))]:
+        peaks += [1024 * int(line.split(":")[1]) for line in report.read_text().splitlines()
+                  if "Maximum resident set size" in line]
+    if not peaks:
+        raise SystemExit(f"no maximum resident set size in {name}.time")
+    return max(peaks)
 
 
 def cpu_model():
@@ -72,7 +77,10 @@ def describe(name, title):
     solver, stages = s["solver"], s["wall_time_s"]["stages"]
     step = step_seconds(s)
     print(f"## {title}\n")
-    print("command: " + (out / f"{name}.command").read_text().strip())
+    commands = (out / f"{name}.command").read_text().strip().splitlines()
+    print("command: " + commands[0])
+    for later in commands[1:]:
+        print("then, stopped and resumed from its last checkpoint: " + later)
     print(f"simulated {s['simulated_time_s']:g} s in {s['steps']} steps; wall {s['wall_time_s']['total']:.1f} s "
           f"(the run loop), {s['wall_time_s']['total'] / max(s['simulated_time_s'], 1e-12):.0f} s per simulated second; "
           f"threads {s['threads']}")
@@ -123,7 +131,10 @@ print(f"# ces-sim: the industrial scene ({start})\n")
 print(f"Machine: {cpu_model()}, {cores} cores, {memory_gib():.0f} GiB; {platform.system()} "
       f"{platform.release()}; commit {commit()}.")
 print(load_line() + ".")
-print(f"Command: bash bench/industrial.sh {end} {short}\n")
+resumed = len(list(out.glob("full.time.*")))
+print(f"Command: bash bench/industrial.sh {end} {short}" +
+      (", then bash bench/industrial.sh --resume" if resumed else "") +
+      (f" ({resumed} times)" if resumed > 1 else "") + "\n")
 full = describe("full", f"Scene to {end} s on {cores} threads")
 
 
