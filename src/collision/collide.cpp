@@ -14,10 +14,6 @@ namespace {
 
 constexpr std::size_t kChunk = 128;  // fixed, so contact order never depends on threads
 
-double smallest_radius(const ParticleShape& s) {
-  return *std::min_element(s.radii.begin(), s.radii.end());
-}
-
 // What gravity and the forces change particle i's velocity by within the
 // step (the forces are this step's after the collision: the last step's
 // stand in for them, still in p.force).
@@ -206,7 +202,7 @@ void rims_crossing(const Plate& a, const Plate& b, ContactKey key, double envelo
 // radius.
 double resting_envelope(const Model& model, const Particles& p, std::size_t i) {
   const ParticleShape& s = model.shapes[std::size_t(p.shape[i])];
-  return model.contact.envelope_fraction * smallest_radius(s) * p.scale[i];
+  return model.contact.envelope_fraction * s.smallest_radius() * p.scale[i];
 }
 
 // Each particle's envelope grows with its own travel in the step, so two
@@ -254,9 +250,9 @@ void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts
     chunks[ch].clear();
     fill(ch * kChunk, std::min(n, (ch + 1) * kChunk), chunks[ch]);
   });
-  // Copied into place in parallel at `used`: 112 bytes a contact, on one
-  // thread the largest serial part of the stage. `out` keeps the last
-  // step's length until the stage ends (Collider::collide), so it is
+  // Copied into place in parallel at `used`: on one thread it would be the
+  // largest serial part of the stage. `out` keeps the last step's length
+  // until the stage ends (Collider::narrowphase), so it is
   // zero-filled only where this step has more contacts, not rewritten.
   // (Named through a reference: in the parallel loop the thread_local
   // itself would be each worker's own.)
@@ -276,7 +272,6 @@ void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts
 void Collider::broadphase(const Model& model, const Particles& p, const Bodies& bodies) {
   const std::size_t n = p.size();
   const double h = model.step;
-  centers_.resize(n);
   reach_.resize(n);
   envelope_.resize(n);
   blow_.assign(n, 0.0);
@@ -295,11 +290,10 @@ void Collider::broadphase(const Model& model, const Particles& p, const Bodies& 
     const double travel =
         (std::max(p.velocity[i].norm(), speed) + p.angular_velocity[i].norm() * bounding) * h;
     envelope_[i] = resting_envelope(model, p, i) + travel;
-    centers_[i] = p.position[i];
     reach_[i] = bounding + envelope_[i];
   }
   for (std::size_t b = 0; b < model.bodies.size(); ++b) struck_by_body(model, p, bodies, int(b));
-  grid_.find_pairs(centers_, reach_, pairs_);
+  grid_.find_pairs(p.position, reach_, pairs_);
   struck_by_neighbours(model, p);
 }
 

@@ -45,7 +45,6 @@ class Collider {
   void body_contacts(const Model& model, const Particles& p, const Bodies& bodies, int body,
                      Contacts& out);
 
-  std::vector<Vec3> centers_;
   std::vector<std::size_t> sphere_first_;  // particle i's spheres: [first[i], first[i + 1])
   std::vector<Vec3> sphere_centre_;        // in the world, this step
   std::vector<PlateFrame> plate_frame_;    // particle i's, if a flake with flat faces

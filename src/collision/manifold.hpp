@@ -20,7 +20,7 @@ struct SpeedChange {
 
 // One pair's contacts before the manifold reduction, side by side: most
 // are dropped (a flake on the drum keeps its hull's corners), so they go
-// to Contacts' nine arrays only once kept.
+// to Contacts' arrays only once kept.
 struct Candidate {
   Vec3 normal, point;
   double gap, radius;

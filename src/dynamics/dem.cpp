@@ -75,7 +75,7 @@ double rayleigh_time(const Model& m, const Particles& p) {
   for (std::ptrdiff_t s = 0; s < n; ++s) {
     const auto i = std::size_t(s);
     const ParticleShape& shape = m.shapes[std::size_t(p.shape[i])];
-    const double r = *std::min_element(shape.radii.begin(), shape.radii.end()) * p.scale[i];
+    const double r = shape.smallest_radius() * p.scale[i];
     const ElasticProperties& el = m.dem.elastic(p.material[i]);
     const double rho = m.materials.materials()[std::size_t(p.material[i])].density;
     const double g = el.youngs_modulus / (2.0 * (1.0 + el.poisson_ratio));

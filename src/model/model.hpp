@@ -1,6 +1,7 @@
 // The compiled, immutable description of a simulation: what a scene compiler
 // builds and the stepper reads. Nothing here knows about YAML or files.
 #pragma once
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -99,6 +100,7 @@ struct ParticleShape {
   double bounding_radius = 0.0;       // about the centre of mass
   FlatFace face;
   bool is_sphere() const { return centers.size() == 1; }
+  double smallest_radius() const { return *std::min_element(radii.begin(), radii.end()); }
 };
 
 // Builds a ParticleShape from spheres given in any frame: computes the union's
