@@ -132,13 +132,13 @@ void ContactDynamics::solve(const Model& m, StepStats& stats) {
   stats.solver = ces::solve(problem_, m.solver, gamma_, workspace_);
 }
 
-void ContactDynamics::safeguard(const Model& m, const State& state, const Contacts& contacts,
+void ContactDynamics::safeguard(const Model& m, const State& state,
                                 std::span<const double> envelope, StepStats& stats) {
   // The velocities of the impulses, which the safeguards change with them.
   problem_.velocities(gamma_, solver_bodies_.v, solver_bodies_.w);
   if (m.contact_model == ContactModel::DEM) return;
   const Particles& p = state.particles;
-  apply_safeguards(m, p, contacts, problem_, safeguards_, gamma_, solver_bodies_, stats);
+  apply_safeguards(m, p, problem_, safeguards_, gamma_, solver_bodies_, stats);
   stats.unlisted_wall_stops =
       stop_at_unlisted_walls(m, p, state.bodies, envelope, solver_bodies_);
 }

@@ -38,8 +38,8 @@ class ContactDynamics {
   void assemble(const Model& model, State& state, const Contacts& contacts, StepStats& stats);
   void solve(const Model& model, StepStats& stats);
   // envelope: each particle's, within which its contacts were listed.
-  void safeguard(const Model& model, const State& state, const Contacts& contacts,
-                 std::span<const double> envelope, StepStats& stats);
+  void safeguard(const Model& model, const State& state, std::span<const double> envelope,
+                 StepStats& stats);
   // Writes the particles' and dynamic bodies' motion, and the warm start.
   void integrate(const Model& model, State& state, const Contacts& contacts);
 

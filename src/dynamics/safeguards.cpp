@@ -33,7 +33,7 @@ double turn_limit(const ParticleShape& s) {
   if (s.is_sphere()) return std::numeric_limits<double>::infinity();
   double lever = 0.0;
   for (const Vec3& c : s.centers) lever = std::max(lever, c.norm());
-  const double r = *std::min_element(s.radii.begin(), s.radii.end());
+  const double r = s.smallest_radius();
   return std::min(kMaxTurn, std::sqrt(2.0 * kDrift * r / lever));
 }
 
@@ -272,7 +272,6 @@ std::size_t release_sliding_walls(const CcpProblem& p, Span x, std::vector<Vec3>
 struct Guard {
   const Model& model;
   const Particles& particles;
-  const Contacts& contacts;
   const CcpProblem& problem;
   SafeguardScratch& scratch;
   Span gamma;
@@ -411,12 +410,12 @@ SafeguardScratch::SafeguardScratch(const Model& model) {
   }
 }
 
-void apply_safeguards(const Model& model, const Particles& particles, const Contacts& contacts,
-                      const CcpProblem& problem, SafeguardScratch& scratch, Span gamma,
-                      SolverBodies& bodies, StepStats& stats) {
+void apply_safeguards(const Model& model, const Particles& particles, const CcpProblem& problem,
+                      SafeguardScratch& scratch, Span gamma, SolverBodies& bodies,
+                      StepStats& stats) {
   const Allowance allowed{std::max(kGuardFactor * model.solver.tolerance, kGuardFloor),
                           model.solver.overlap_aim()};
-  Guard c{model, particles, contacts, problem, scratch, gamma, bodies, allowed};
+  Guard c{model, particles, problem, scratch, gamma, bodies, allowed};
   make_safe(c, stats);
   release_sliding(c, stats);
   limit_spin(c, stats);

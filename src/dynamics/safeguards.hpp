@@ -12,7 +12,6 @@
 #include <cstdint>
 #include <vector>
 
-#include "collision/contacts.hpp"
 #include "dynamics/ccp.hpp"
 #include "model/model.hpp"
 #include "model/state.hpp"
@@ -35,8 +34,8 @@ class SafeguardScratch {
 
 // The safeguards in the order above. gamma and bodies.v, w: the solve's
 // impulses and their velocities, changed in place.
-void apply_safeguards(const Model& model, const Particles& particles, const Contacts& contacts,
-                      const CcpProblem& problem, SafeguardScratch& scratch, Span gamma,
-                      SolverBodies& bodies, StepStats& stats);
+void apply_safeguards(const Model& model, const Particles& particles, const CcpProblem& problem,
+                      SafeguardScratch& scratch, Span gamma, SolverBodies& bodies,
+                      StepStats& stats);
 
 }  // namespace ces

@@ -78,7 +78,7 @@ const StepStats& World::step(StepObserver* observer) {
   stage(Stage::Assemble, [&] { dynamics_.assemble(m, state_, contacts_, stats); });
   stage(Stage::Solve, [&] { dynamics_.solve(m, stats); });
   stage(Stage::Safeguards,
-        [&] { dynamics_.safeguard(m, state_, contacts_, collider_.envelopes(), stats); });
+        [&] { dynamics_.safeguard(m, state_, collider_.envelopes(), stats); });
   stage(Stage::Integrate, [&] {
     integrate(stats);
     stats.time = state_.time;
