@@ -9,6 +9,7 @@
 #include <string>
 
 #include "common/hash.hpp"
+#include "common/random.hpp"
 
 namespace ces::feed {
 namespace {
@@ -344,9 +345,7 @@ void Feeder::load(ByteReader& in) {
   neighbours_valid_ = false;
 }
 
-// 53 random bits from the raw engine: the same numbers with every standard
-// library, unlike std::uniform_real_distribution.
-double Feeder::uniform() { return double(rng_() >> 11) * 0x1.0p-53; }
+double Feeder::uniform() { return uniform01(rng_); }
 
 // Random, lying flat, or the shape's principal frame as it is.
 Quat Feeder::orientation(const Candidate& c) {

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "common/random.hpp"
+
 namespace ces::feed {
 namespace {
 
@@ -26,9 +28,6 @@ constexpr std::array<double, 4> kGaussW = {0.3478548451374538, 0.652145154862546
 void require(bool ok, const char* what) {
   if (!ok) throw std::invalid_argument(what);
 }
-
-// 53 random bits to [0, 1): the same on every platform.
-double uniform01(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
 
 // Grid nodes of one piece after `lo`: geometric when lo > 0 (constant
 // relative resolution over wide size ranges), otherwise arithmetic.
