@@ -223,7 +223,7 @@ bool lies_flat(const ShapeElectrics& shape, const Quat& orientation, const Vec3*
 }  // namespace
 
 // Where one particle is this step, as far as its charges are concerned.
-struct Site {
+struct ElectrostaticsStage::Site {
   Vec3 position;            // centre of mass
   Vec3 field;               // E there (with the corona space charge); zero beyond the drum width
   double current_density;   // J of the corona bands there
@@ -368,7 +368,7 @@ DrumGap ElectrostaticsStage::nearest_drum(const ParticleShape& s, const Particle
   return out;
 }
 
-Site ElectrostaticsStage::site(const Model& model, const Particles& p, std::size_t i,
+ElectrostaticsStage::Site ElectrostaticsStage::site(const Model& model, const Particles& p, std::size_t i,
                               const Contacts& c) const {
   const Vec3& x = p.position[i];
   const bool active = std::abs(x.z()) <= spec_.drum.half_width;

@@ -150,9 +150,6 @@ struct ElectrostaticsSpec {
   double medium_relative_permittivity = Air{}.relative_permittivity;
 };
 
-// Site of one particle for its charges this step (electrostatics.cpp).
-struct Site;
-
 // The drum surface nearest a particle: the gap of its closest sphere and
 // the outward normal there; none found beyond one drum radius.
 struct DrumGap {
@@ -173,6 +170,9 @@ class ElectrostaticsStage {
              Particles& particles);
 
  private:
+  // Where one particle is this step, as its charges see it (electrostatics.cpp).
+  struct Site;
+
   void find_touches(const Model& model, const Contacts& c, const Bodies& bodies,
                     const Particles& p);
   void touch(const Model& model, const Contacts& c, std::size_t k, bool on_drum,
