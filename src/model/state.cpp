@@ -39,10 +39,6 @@ void Particles::swap_remove(std::size_t i) {
   });
 }
 
-void Particles::reserve(std::size_t n) {
-  for_each_array(*this, [n](auto& v) { v.reserve(n); });
-}
-
 void Particles::permute(const std::vector<std::uint32_t>& order, Particles& scratch) {
   std::apply(
       [&](auto... member) {

@@ -50,7 +50,6 @@ struct Particles {
             double m, const Vec3& inertia, const Vec3& x, const Quat& q, const Vec3& v,
             const Vec3& w, double birth_time);
   void swap_remove(std::size_t i);
-  void reserve(std::size_t n);
   // New index j takes old index order[j]. The arrays swap with `scratch`'s,
   // so once both have grown, reordering allocates nothing.
   void permute(const std::vector<std::uint32_t>& order, Particles& scratch);

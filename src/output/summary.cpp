@@ -243,6 +243,14 @@ std::string g3(double v) {
   return s;
 }
 
+// How the steps' thread counts were chosen and how many steps ran at each.
+Json threads_json(const RunRecord& r) {
+  Json steps = Json::object();
+  for (std::size_t n = 1; n < r.steps_at_threads.size(); ++n)
+    if (r.steps_at_threads[n] > 0) steps[std::to_string(n)] = r.steps_at_threads[n];
+  return {{"by", r.threads_adaptive ? "timing (adaptive)" : "fixed"}, {"steps_at", steps}};
+}
+
 }  // namespace
 
 std::string rayleigh_warning(double step, double rayleigh_time, std::uint64_t steps) {
@@ -290,14 +298,6 @@ void add_warnings(RunRecord& r) {
     if (const Tally t = sum(r.collection->lost(reason)); t.count > 0)
       warn(std::to_string(t.count) + " particles lost: " + std::string(to_string(reason)));
   if (!balanced(r, fates(r))) warn("internal: particle balance does not close");
-}
-
-// How the steps' thread counts were chosen and how many steps ran at each.
-Json threads_json(const RunRecord& r) {
-  Json steps = Json::object();
-  for (std::size_t n = 1; n < r.steps_at_threads.size(); ++n)
-    if (r.steps_at_threads[n] > 0) steps[std::to_string(n)] = r.steps_at_threads[n];
-  return {{"by", r.threads_adaptive ? "timing (adaptive)" : "fixed"}, {"steps_at", steps}};
 }
 
 std::string summary_json(const RunRecord& r) {

@@ -2,8 +2,6 @@
 
 namespace ces::scene {
 
-namespace fs = std::filesystem;
-
 void Compiler::read_feeds() {
   const Node* list = root_.find("feeds");
   if (!list) return;

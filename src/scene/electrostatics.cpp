@@ -5,6 +5,7 @@
 #include <map>
 #include <sstream>
 
+#include "scene/compile_support.hpp"
 #include "scene/diagnostics.hpp"
 #include "scene/limits.hpp"
 #include "scene/resolve.hpp"
@@ -16,13 +17,6 @@ namespace {
 // The electrode keys a corona wire's ions read, and nothing else does.
 constexpr const char* kCoronaKeys[] = {"mobility", "air_density"};
 
-std::string format(double x) {
-  std::ostringstream s;
-  s << x;
-  return s.str();
-}
-
-std::string metres(double x) { return format(x) + " m"; }
 std::string millimetres(double x) { return format(x * 1e3) + " mm"; }
 std::string degrees(double rad) { return format(rad * 180.0 / kPi) + " deg"; }
 

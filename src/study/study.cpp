@@ -280,12 +280,6 @@ std::string point_label(const Row& r) {
   return !label.empty() ? label : "case " + std::to_string(r.c.index);
 }
 
-std::string xml_escaped(const std::string& s) {
-  std::string out;
-  for (const char c : s) out += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : std::string(1, c);
-  return out;
-}
-
 struct Frame {  // log10 ranges mapped to the plot area
   double x0, x1, y0, y1;
   static constexpr double left = 80, top = 40, width = 420, height = 320;
@@ -360,10 +354,10 @@ std::string study_svg(const std::vector<Row>& rows) {
     for (const Point& p : points)
       out << "<circle cx='" << f.px(p.wall) << "' cy='" << f.py(p.error) << "' r='3' fill='"
           << colour << "'/><text x='" << f.px(p.wall) + 5 << "' y='" << f.py(p.error) - 5
-          << "' font-size='10' fill='" << colour << "'>" << xml_escaped(p.label) << "</text>\n";
+          << "' font-size='10' fill='" << colour << "'>" << output::xml_escape(p.label) << "</text>\n";
     const double ly = f.top + 10 + 18 * n++;
     out << "<line x1='515' y1='" << ly << "' x2='535' y2='" << ly << "' stroke='" << colour
-        << "' stroke-width='2'/><text x='540' y='" << ly + 4 << "'>" << xml_escaped(name) << "</text>\n";
+        << "' stroke-width='2'/><text x='540' y='" << ly + 4 << "'>" << output::xml_escape(name) << "</text>\n";
   }
   out << "</svg>\n";
   return out.str();
@@ -576,9 +570,9 @@ std::string study_report(const std::vector<Case>& cases, const fs::path& referen
          "<title>ces-sim study</title>\n<style>body { font: 14px Helvetica, Arial, sans-serif; "
          "margin: 24px auto; max-width: 980px; } img { max-width: 100%; }</style>\n</head>\n"
          "<body>\n<h1>Study</h1>\n<p>reference: " +
-         xml_escaped(reference.string()) + "</p>\n<img alt=\"work-precision\" " +
+         output::xml_escape(reference.string()) + "</p>\n<img alt=\"work-precision\" " +
          kPlotLoads + " src=\"data:image/svg+xml;base64," + output::base64(svg) + "\">\n<pre>" +
-         xml_escaped(table) + "</pre>\n<p>each case's report: " + links + "</p>\n</body>\n</html>\n";
+         output::xml_escape(table) + "</pre>\n<p>each case's report: " + links + "</p>\n</body>\n</html>\n";
 }
 
 Scheduler parse_scheduler(const std::string& name) {
