@@ -8,12 +8,13 @@
 
 namespace ces {
 
-// A collector plane: a particle is collected when its centre crosses the
-// plane against the normal (from the side the normal points to).
+// A named range of a collector's bin axis.
 struct Product {
   std::string name;
   double from = 0.0, to = 0.0;     // along the bin axis (m)
 };
+// A collector plane: a particle is collected when its centre crosses the
+// plane against the normal (from the side the normal points to).
 struct Collector {
   std::string name;
   Vec3 point = Vec3::Zero();

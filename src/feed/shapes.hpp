@@ -1,6 +1,6 @@
 // Particle templates a feed can name besides the scene's own clusters: the
 // built-in flake and rod, and sphere clusters read from a CSV file. Spheres
-// come in any frame; make_particle_shape (dynamics/model.hpp) moves them to
+// come in any frame; make_particle_shape (model/model.hpp) moves them to
 // the principal frame.
 #pragma once
 #include <filesystem>

@@ -1,8 +1,8 @@
 // Particle charging laws, electric forces and air drag (docs/physics.md §5).
 //
 // Pure functions of SI quantities (m, s, C, V/m, A/m², N). Radii, not
-// diameters, throughout: a √3·r radius slip, once in the seed code's bipolar field, must not
-// come back. The caller owns the state (the charge) and the geometry.
+// diameters, throughout, so that no law mixes the two. The caller owns the
+// state (the charge) and the geometry.
 #pragma once
 #include "common/math.hpp"
 #include "model/defaults.hpp"

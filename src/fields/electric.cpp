@@ -97,7 +97,7 @@ Vec3 BipolarField::field(const Vec3& p) const {
   const double rB2 = bx * bx + q.y() * q.y();
   const double e1x = -f_ * (ax / rA2 - bx / rB2);
   const double e1y = -f_ * (q.y() / rA2 - q.y() / rB2);
-  // Back to the drum frame: the rotation the seed code forgot.
+  // Back to the drum frame, turned by the electrode's angle.
   return {e1x * cos_a_ - e1y * sin_a_, e1x * sin_a_ + e1y * cos_a_, 0.0};
 }
 

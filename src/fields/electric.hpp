@@ -44,7 +44,7 @@ struct Electrode {
 
 // Exact 2-D field of the grounded drum and one cylindrical electrode: two
 // line charges ±λ at the common inverse points (foci) of the two circles
-// (docs/physics.md §3.1, implemented from the formulas there, not from the seed code).
+// (docs/physics.md §3.1, implemented from the formulas there).
 class BipolarField {
  public:
   // Throws std::invalid_argument unless the radii and half-width are

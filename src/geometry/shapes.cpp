@@ -89,7 +89,7 @@ SurfaceHit cylinder_side(std::uint32_t side, double distance, const Vec3& p, con
 void query_cylinder(const Cylinder& c, const Vec3& p, double max_distance,
                     std::vector<SurfaceHit>& out) {
   // rho to about an ulp (std::hypot's care for overflow is not needed at a
-  // machine's scale, and cost a tenth of the narrowphase on the drum); every
+  // machine's scale, and is slow in this, the drum's hot query); every
   // distance below is one subtraction of nearby numbers, exact by Sterbenz
   // near the surface.
   const double rho = std::sqrt(p.x() * p.x() + p.y() * p.y());

@@ -53,7 +53,8 @@ class StepLog {
   // An empty path: statistics only, no steps.csv.
   StepLog(const std::filesystem::path& steps_csv, int max_iterations, Start start = Start::Fresh);
 
-  // wall_s: the step's stages before the output stage that records it.
+  // steps.csv's wall_s: the step's stages before the output stage that
+  // records it.
   void record(const StepStats& s);
   SolverSummary summary() const;
   // steps.csv complete on the disk (the run's end).

@@ -49,7 +49,7 @@ std::vector<ProductResult> product_results(const Simulation& sim, const Collecti
 std::string bins_csv(const Simulation& sim, const Collection& c, const std::vector<int>& materials);
 std::string products_csv(const Simulation& sim, const std::vector<ProductResult>& products,
                          const std::vector<int>& materials);
-// Rows in the order of Collection::crossings() / losses() (sort them first).
+// Rows in the order of Collection::crossings() / losses(): (time, id).
 std::string crossings_csv(const Simulation& sim, const Collection& c);
 std::string lost_csv(const Simulation& sim, const Collection& c);
 

@@ -2,8 +2,6 @@
 
 namespace ces::scene {
 
-namespace fs = std::filesystem;
-
 void Compiler::read_collectors() {
   const Node* list = root_.find("collectors");
   if (!list) return;
@@ -209,7 +207,8 @@ void Compiler::default_extent(FieldPicture& p) const {
   p.max += Vec2::Constant(0.2 * r);
 }
 
-// What the run has to build (docs/architecture.md): absent sections cost nothing.
+// What the run has to build (summary.json's active_components, docs/outputs.md):
+// absent sections cost nothing.
 void Compiler::list_components() {
   const Model& m = *model_;
   const auto any_body = [&](BodyKind kind) {
