@@ -331,11 +331,13 @@ void rounds(std::ostream& o, const Results& r) {
 
 void scene_target(std::ostream& o, const Results& r) {
   if (!scene_full(r)) {
-    row(o, "ces_pcb (2 s) < 2 min", scene_missing(r), "not judged");
+    row(o, "ces_pcb, run to its end, < 2 min", scene_missing(r), "not judged");
     return;
   }
+  // The simulated time, not time.end: a scene run until its particles are
+  // collected ends before its time.end, which is only a cap.
   const SceneRun& s = *r.scene;
-  row(o, s.name + " (" + f("%.3g", s.end_time) + " s) < 2 min",
+  row(o, s.name + " (" + f("%.3g", s.simulated) + " s simulated) < 2 min",
       f("%.0f", s.process_wall) + " s", verdict(s.process_wall < 120));
 }
 
