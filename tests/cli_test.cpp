@@ -191,6 +191,10 @@ TEST(Cli, NumbersOutOfRangeAreRefusedAsWritten) {
       {"study " + scene("tiny.yaml") + " --vary seed=1,2 --jobs 0",
        "--jobs: got '0', expected a whole number >= 1"},
       {scene("tiny.yaml") + " --seed -1", "--seed: got '-1', expected a whole number >= 0"},
+      {scene("tiny.yaml") + " --seed 010", "--seed: got '010', expected a whole number >= 0"},
+      {scene("tiny.yaml") + " --seed 18446744073709551616",
+       "--seed: got '18446744073709551616', expected a whole number >= 0"},
+      {"compare a b --tol-count 1e3", "--tol-count: got '1e3', expected a whole number >= 0"},
   };
   for (const auto& [args, message] : cases) {
     const Outcome o = ces_sim(args);

@@ -21,6 +21,8 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <charconv>
+#include <cstdint>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -48,7 +50,8 @@ constexpr const char* kExitCodes =
     "  0  success; compare: the folders agree\n"
     "  1  compare: the folders differ\n"
     "  2  bad input (scene diagnostics on stderr, one per line; bad arguments)\n"
-    "  3  run failed or interrupted (partial outputs kept, summary.json complete: false)\n"
+    "  3  run failed or interrupted (partial outputs kept, summary.json complete: false), or\n"
+    "     out of memory\n"
     "  4  internal error\n";
 
 // A command-line mistake the parser cannot see (a --set without '=').
@@ -70,19 +73,28 @@ struct Args {
   ces::output::CompareOptions tolerances;
 };
 
-// A finite number, whole if asked, at least `least`. CLI11's own checks let
-// NaN through, wrap a negative count into a huge one, and print their
-// bounds with 310 digits.
+// A finite number, or a whole one written in decimal digits that fits
+// 64 bits, at least `least`. CLI11's own checks let NaN through, wrap a
+// negative count into a huge one, read a leading 0 as octal, and print
+// their bounds with 310 digits.
 CLI::Validator at_least(double least, bool whole) {
   const std::string what = std::string(whole ? "a whole number" : "a number") + " >= " +
                            std::to_string(int(least));
   return CLI::Validator(
       [least, whole, what](std::string& text) -> std::string {
-        char* end = nullptr;
-        const double x = std::strtod(text.c_str(), &end);
-        const bool number = end != text.c_str() && *end == '\0' && std::isfinite(x);
-        if (number && x >= least && (!whole || x == std::floor(x))) return "";
-        return "got '" + text + "', expected " + what;
+        bool ok = false;
+        if (whole) {
+          std::uint64_t n = 0;
+          const char* end = text.data() + text.size();
+          const auto [at, error] = std::from_chars(text.data(), end, n);
+          const bool octal_looking = text.size() > 1 && text[0] == '0';
+          ok = error == std::errc() && at == end && !octal_looking && double(n) >= least;
+        } else {
+          char* end = nullptr;
+          const double x = std::strtod(text.c_str(), &end);
+          ok = end != text.c_str() && *end == '\0' && std::isfinite(x) && x >= least;
+        }
+        return ok ? "" : "got '" + text + "', expected " + what;
       },
       what);
 }
