@@ -40,9 +40,10 @@ std::vector<std::string> split(const std::string& s, char sep) {
   return out;
 }
 
-// A path as every command of a study names it: absolute, with no '..' or
-// link left in it, whatever the folder the command runs in.
-std::string full_path(const fs::path& p) { return fs::weakly_canonical(fs::absolute(p)).string(); }
+// A path as every command of a study names it: absolute, with no '.' or
+// '..' left in it, whatever the folder the command runs in. Links stay:
+// a scene's includes and name come from the path it is given.
+std::string full_path(const fs::path& p) { return fs::absolute(p).lexically_normal().string(); }
 
 fs::path case_dir(const Options& o, const Case& c) {
   return o.out_dir / ("case_" + std::to_string(c.index));
