@@ -198,21 +198,27 @@ TEST(Restart, ACompleteRunRemovesOnlyTheEarlierRunsFiles) {
 }
 
 // summary.json is text anyone may edit: an earlier one that lists folders
-// ('.', 'sub/', 'trajectories', 'partial') or a path out of the folder has
-// none of them removed, and the new run completes in its place.
+// ('.', 'sub/', 'trajectories', 'partial'), a path out of the folder, or a
+// file through a folder that links elsewhere has none of them removed, and
+// the new run completes in its place.
 TEST(Restart, AnEarlierSummaryListingFoldersRemovesNoneOfThem) {
   const fs::path dir = fresh_dir("listed_folders");
   ASSERT_EQ(ces_sim(kTiny + " -o " + dir.string() + " --quiet").code, 0);
   fs::create_directories(dir / "sub");
   std::ofstream(dir / "sub" / "mine.txt") << "mine";
+  const fs::path outside = fresh_dir("listed_outside");
+  std::ofstream(outside / "victim.txt") << "theirs";
+  fs::create_directory_symlink(outside, dir / "link");
   nlohmann::json summary = nlohmann::json::parse(read_text(dir / "summary.json"));
-  for (const char* name : {".", "./", "sub/", "sub", "trajectories", "partial", "../x", "/tmp"})
+  for (const char* name : {".", "./", "sub/", "sub", "trajectories", "partial", "../x", "/tmp",
+                           "link/victim.txt"})
     summary["files"].push_back(name);
   std::ofstream(dir / "summary.json") << summary.dump();
   const Outcome o = ces_sim(kTiny + " -o " + dir.string() + " --quiet");
   ASSERT_EQ(o.code, 0) << o.err;
   EXPECT_TRUE(nlohmann::json::parse(read_text(dir / "summary.json"))["complete"].get<bool>());
   EXPECT_EQ(read_text(dir / "sub" / "mine.txt"), "mine");
+  EXPECT_EQ(read_text(outside / "victim.txt"), "theirs");
   EXPECT_TRUE(fs::exists(dir / "trajectories" / "frame_000001.vtp"));
   EXPECT_FALSE(fs::exists(dir / "partial"));
 }

@@ -20,6 +20,17 @@ bool safe_relative(const std::string& name) {
                       [](const fs::path& part) { return part == ".." || part == "."; });
 }
 
+// Whether `name` in `dir` is a file (or a link) that lies in `dir` itself:
+// a listed 'sub/x' whose 'sub' links elsewhere names another folder's file.
+bool removable(const fs::path& dir, const std::string& name) {
+  const fs::path path = dir / name;
+  const fs::file_status status = fs::symlink_status(path);
+  if (!fs::is_regular_file(status) && !fs::is_symlink(status)) return false;
+  const fs::path parent = fs::weakly_canonical(path.parent_path());
+  const fs::path within = parent.lexically_relative(fs::weakly_canonical(dir));
+  return !within.empty() && *within.begin() != "..";
+}
+
 // What an unfinished run may have left in its work folder: the files its
 // summary lists, the checkpoint, and the names every run writes as it goes.
 void clear_work(const fs::path& work) {
@@ -31,8 +42,8 @@ void clear_work(const fs::path& work) {
     names.emplace_back(name);
   for (const std::string& name : names) {
     if (!safe_relative(name)) continue;
-    fs::remove(work / name);
-    fs::remove(work / (name + ".tmp"));
+    if (removable(work, name)) fs::remove(work / name);
+    if (removable(work, name + ".tmp")) fs::remove(work / (name + ".tmp"));
   }
   if (fs::is_directory(work / "trajectories"))
     for (const fs::directory_entry& e : fs::directory_iterator(work / "trajectories"))
@@ -93,12 +104,9 @@ void OutputFolder::publish(const std::vector<std::string>& files) const {
       fs::create_directories((dir_ / f).parent_path());
       fs::rename(work_ / f, dir_ / f);
     }
-    for (const std::string& f : earlier) {
-      // Only a file: a folder of that name is someone else's.
-      const fs::file_status status = fs::symlink_status(dir_ / f);
-      const bool file = fs::is_regular_file(status) || fs::is_symlink(status);
-      if (file && std::find(files.begin(), files.end(), f) == files.end()) fs::remove(dir_ / f);
-    }
+    for (const std::string& f : earlier)
+      if (removable(dir_, f) && std::find(files.begin(), files.end(), f) == files.end())
+        fs::remove(dir_ / f);
     fs::rename(work_ / "summary.json", dir_ / "summary.json");
     clear_work(work_);
   } catch (const fs::filesystem_error& e) {
