@@ -386,7 +386,8 @@ TEST(RunBalance, FedEqualsCollectedPlusLostPlusActiveExactly) {
 }
 
 // A particle's mass in the exact tally: as llround gives it below 9.2 kg,
-// and past that (where llround wraps) still the mass, to the unit.
+// and past that (where llround wraps) still the mass, to a double's
+// precision.
 TEST(RunBalance, TheTallyHoldsEveryMassAFeedMayMake) {
   for (const double kg : {1e-18, 3.7e-9, 4.02929489e-05, 9.0})
     EXPECT_EQ(to_mass_units(kg), MassUnits(std::llround(kg / kMassUnit))) << kg;

@@ -217,8 +217,8 @@ const Expected kExpectations[] = {
      "shapes.speck.spheres: a shape 400001 of its smallest sphere's radii across, expected at "
      "most 10000"},
     {"shape_size_far.yaml", "shape_size_far.yaml", 9,
-     "shapes.giant.size: size 1e+300 is 5e+299 times the spheres' extent, expected within a "
-     "factor 10000 of it"},
+     "shapes.giant.size: size 1e+300 is 5e+299 times the spheres' bounding diameter, expected "
+     "within a factor 10000 of it"},
     {"too_many_shapes.yaml", "too_many_shapes.yaml", 27,
      "feeds[0].mix[16].shape: a particle shape past the first 16"},
     {"too_many_materials.yaml", "too_many_materials.yaml", 3,

@@ -107,7 +107,8 @@ class Feeder {
   // candidate's reach to a neighbour: a candidate is checked against those
   // in the 27 cells around its own, not against all (thousands where the
   // feed lays a monolayer). Those placed since are checked one by one, up
-  // to as many as the grid holds (place()).
+  // to as many as the grid holds (place()); cells of their own would make
+  // a one-step feed linear.
   struct Grid {
     Vec3 min = Vec3::Zero();
     double inv_cell = 0.0;

@@ -251,7 +251,7 @@ int ShapeReader::add_shape(const ParticleShape& shape, const Node* entry,
   const double ratio = size ? size->number() / (2.0 * shape.bounding_radius) : 1.0;
   if (!(ratio <= limits::kShapeSpan && ratio >= 1.0 / limits::kShapeSpan))
     diags_.error(*size, "size " + format(size->number()) + " is " + format(ratio) +
-                            " times the spheres' extent, expected within a factor " +
+                            " times the spheres' bounding diameter, expected within a factor " +
                             format(limits::kShapeSpan) + " of it");
   if (size)
     sizes_.push_back(size->number());
