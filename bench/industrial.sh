@@ -68,7 +68,14 @@ sys.exit(0 if (folder / "checkpoint.bin").exists() and abs(t - at) < 1e-9 else 1
 PY
 }
 keep_checkpoint() {
-  until checkpoint_at; do sleep 1; done
+  until checkpoint_at; do
+    if complete "$out/full"; then
+      echo "bench/industrial.sh: the full run ended before its checkpoint at $at s was kept;" \
+        "run the bench afresh" >&2
+      exit 1
+    fi
+    sleep 1
+  done
   for threads in 1 2; do
     rm -rf "$out/resume_$threads"
     mkdir -p "$out/resume_$threads"
@@ -80,10 +87,11 @@ complete() {  # whether the run in folder $1 completed
   python3 -c "import json, sys; sys.exit(0 if json.load(open(sys.argv[1])).get('complete') else 1)" \
     "$1/summary.json" 2>/dev/null
 }
-# The full run: started afresh, or resumed from its last checkpoint, each
-# process under GNU time of its own (full.time, full.time.2, ...).
+# The full run: started afresh (also when stopped before its first
+# checkpoint), or resumed from its last checkpoint, each process under GNU
+# time of its own (full.time, full.time.2, ...).
 full_run() {
-  if ! $resuming; then
+  if ! $resuming || { ! complete "$out/full" && [ ! -f "$out/full/partial/checkpoint.bin" ]; }; then
     run full "$cores" "$end" --set "output.checkpoint.every=${span}s"
     return
   fi
@@ -96,6 +104,7 @@ full_run() {
 }
 resume() {
   local threads=$1 dir=$out/resume_$1
+  complete "$dir" && return  # done before the bench was stopped
   echo "nice -n 10 $bin resume $dir --threads $threads -q" > "$out/resume_$threads.command"
   /usr/bin/time -v -o "$out/resume_$threads.time" nice -n 10 "$bin" resume "$dir" \
     --threads "$threads" -q > /dev/null
@@ -106,7 +115,8 @@ sample_load() {
   while :; do cut -d' ' -f1 /proc/loadavg >> "$out/load.txt"; sleep 10; done
 }
 if ! $resuming; then
-  rm -f "$out/load.txt" "$out/resume.ready" "$out"/full.time.*
+  rm -rf "$out"  # every file of an earlier bench, so that none is taken for this one's
+  mkdir -p "$out"
   echo "$end $short" > "$out/bench.args"
   date -u '+%Y-%m-%d %H:%M UTC' > "$out/start.txt"
 fi
@@ -116,7 +126,8 @@ keeper=
 trap 'kill $sampler $keeper 2>/dev/null || true' EXIT
 
 start=$(cat "$out/start.txt")
-$resuming || run empty "$cores" 0.0005  # one step: the process without particles
+# One step: the process without particles.
+$resuming && complete "$out/empty" || run empty "$cores" 0.0005
 if [ ! -e "$out/resume.ready" ]; then
   if $resuming && complete "$out/full"; then
     echo "bench/industrial.sh: the full run ended before its checkpoint at $at s was kept;" \
