@@ -88,7 +88,7 @@ const Expected kExpectations[] = {
     {"es_grid_bad_row.yaml", "es_grid_bad_row.yaml", 20,
      "fields/bad_row.csv:3: z is not a finite number: 'zero'"},
     {"es_grid_missing.yaml", "es_grid_missing.yaml", 20,
-     "fields/nowhere.csv: cannot open the field file"},
+     "fields/nowhere.csv: cannot open the file"},
     {"es_insulator_without_permittivity.yaml", "es_insulator_without_permittivity.yaml", 6,
      "materials.fr4: material 'fr4' is (partly) an insulator, whose corona charge needs its "
      "relative_permittivity"},

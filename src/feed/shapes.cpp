@@ -1,12 +1,14 @@
 #include "feed/shapes.hpp"
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+
+#include "common/csv.hpp"
 
 namespace ces::feed {
 namespace {
@@ -14,32 +16,22 @@ namespace {
 // ceil(x), robust to x landing a rounding error above an integer.
 int whole_steps(double x) { return int(std::ceil(x - 1e-9)); }
 
-std::string_view trim(std::string_view s) {
-  const auto blank = [](char c) { return c == ' ' || c == '\t' || c == '\r'; };
-  while (!s.empty() && blank(s.front())) s.remove_prefix(1);
-  while (!s.empty() && blank(s.back())) s.remove_suffix(1);
-  return s;
-}
-
 // Four comma-separated numbers, or nothing.
 bool parse_row(std::string_view line, double (&v)[4]) {
+  const auto fields = csv::split(line);
+  if (fields.size() != 4) return false;
   for (int k = 0; k < 4; ++k) {
-    const auto comma = k < 3 ? line.find(',') : line.size();
-    if (comma == std::string_view::npos) return false;
-    const std::string_view field = trim(line.substr(0, comma));
-    const auto [end, ec] = std::from_chars(field.data(), field.data() + field.size(), v[k]);
-    if (ec != std::errc() || end != field.data() + field.size() || !std::isfinite(v[k]))
-      return false;
-    line.remove_prefix(std::min(line.size(), comma + 1));
+    const auto parsed = csv::number(fields[k]);
+    if (!parsed) return false;
+    v[k] = *parsed;
   }
   return true;
 }
 
 bool is_header(std::string_view line) {
-  std::string compact;
-  for (const char c : line)
-    if (c != ' ' && c != '\t' && c != '\r') compact += c;
-  return compact == "x,y,z,r";
+  const auto fields = csv::split(line);
+  constexpr std::string_view kHeader[] = {"x", "y", "z", "r"};
+  return std::equal(fields.begin(), fields.end(), std::begin(kHeader), std::end(kHeader));
 }
 
 }  // namespace
@@ -74,17 +66,12 @@ SphereList rod_spheres(double aspect) {
 }
 
 SphereList read_sphere_csv(const std::filesystem::path& path) {
-  // Not a device or a pipe: reading one may never end.
-  std::error_code ec;
-  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
-    throw std::runtime_error(path.string() + ": not a regular file");
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path.string() + ": cannot open the file");
+  std::ifstream in = csv::open(path);
   SphereList out;
   std::string text;
   bool first_row = true;
   for (int line = 1; std::getline(in, text); ++line) {
-    const std::string_view row = trim(text);
+    const std::string_view row = csv::trim(line == 1 ? csv::without_bom(text) : text);
     if (row.empty() || row.front() == '#') continue;
     const bool header = first_row && is_header(row);
     first_row = false;

@@ -2,16 +2,16 @@
 
 #include <Eigen/LU>
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <limits>
-#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string_view>
 #include <tuple>
 #include <utility>
+
+#include "common/csv.hpp"
 
 namespace ces::fields {
 namespace {
@@ -204,36 +204,8 @@ std::string format_point(const Vec3& p) {
   return out.str();
 }
 
-std::string_view trim(std::string_view s) {
-  const auto first = s.find_first_not_of(" \t\r");
-  if (first == std::string_view::npos) return {};
-  return s.substr(first, s.find_last_not_of(" \t\r") - first + 1);
-}
-
-std::vector<std::string_view> split_fields(std::string_view line) {
-  std::vector<std::string_view> fields;
-  std::size_t start = 0;
-  for (std::size_t comma; (comma = line.find(',', start)) != std::string_view::npos;
-       start = comma + 1) {
-    fields.push_back(trim(line.substr(start, comma - start)));
-  }
-  fields.push_back(trim(line.substr(start)));
-  return fields;
-}
-
-// Locale-independent; the whole field must be one finite number.
-std::optional<double> parse_number(std::string_view s) {
-  if (!s.empty() && s.front() == '+') s.remove_prefix(1);
-  double v = 0.0;
-  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-  if (ec != std::errc() || end != s.data() + s.size() || !std::isfinite(v)) return std::nullopt;
-  return v;
-}
-
-void check_header(std::string line, const std::string& source) {
-  constexpr std::string_view kBom = "\xEF\xBB\xBF";  // spreadsheet exports
-  if (line.starts_with(kBom)) line.erase(0, kBom.size());
-  const auto fields = split_fields(line);
+void check_header(std::string_view line, const std::string& source) {
+  const auto fields = csv::split(csv::without_bom(line));
   if (!std::equal(fields.begin(), fields.end(), kHeader.begin(), kHeader.end())) {
     fail_at(source, 1, "expected the header x,y,z,Ex,Ey,Ez");
   }
@@ -247,14 +219,14 @@ std::vector<Row> read_rows(std::istream& in, const std::string& source) {
   check_header(line, source);
   std::vector<Row> rows;
   for (std::size_t number = 2; std::getline(in, line); ++number) {
-    if (trim(line).empty()) continue;
-    const auto fields = split_fields(line);
+    if (csv::trim(line).empty()) continue;
+    const auto fields = csv::split(line);
     if (fields.size() != kHeader.size()) {
       fail_at(source, number, "expected 6 values, found " + std::to_string(fields.size()));
     }
     std::array<double, 6> v{};
     for (std::size_t c = 0; c < v.size(); ++c) {
-      const auto parsed = parse_number(fields[c]);
+      const auto parsed = csv::number(fields[c]);
       if (!parsed) {
         fail_at(
             source, number,
@@ -365,12 +337,7 @@ GridField::GridField(const std::array<Axis, 3>& axes, std::vector<Vec3> values)
 }
 
 GridField GridField::load_csv(const std::filesystem::path& path) {
-  // Not a device or a pipe: reading one may never end.
-  std::error_code ec;
-  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
-    throw std::runtime_error(path.string() + ": not a regular file");
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path.string() + ": cannot open the field file");
+  std::ifstream in = csv::open(path);
   return parse_csv(in, path.string());
 }
 
