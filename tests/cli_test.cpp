@@ -179,6 +179,24 @@ TEST(Cli, BadArgumentsExitTwo) {
   EXPECT_EQ(ces_sim("compare /nonexistent/a /nonexistent/b").code, 2);
 }
 
+// A mistyped command is named as such, not taken for a scene followed by
+// an unexpected argument; an empty output folder is not the scene's own.
+TEST(Cli, MistakesAreNamedForWhatTheyAre) {
+  const Outcome typo = ces_sim("valdate " + scene("tiny.yaml"));
+  EXPECT_EQ(typo.code, 2);
+  EXPECT_NE(typo.err.find("'valdate' is neither a command (validate, schema, compare, resume, "
+                          "study) nor a scene file"),
+            std::string::npos)
+      << typo.err;
+  for (const std::string& args :
+       {scene("tiny.yaml") + " -o ''", "study " + scene("tiny.yaml") + " --vary seed=1,2 -o ''"}) {
+    const Outcome empty = ces_sim(args);
+    EXPECT_EQ(empty.code, 2) << args;
+    EXPECT_NE(empty.err.find("--out: got '', expected a folder"), std::string::npos) << args << "\n"
+                                                                                     << empty.err;
+  }
+}
+
 // Numbers on the command line are checked as written: a negative count is
 // not wrapped into a huge tolerance, NaN is no tolerance, and the message
 // names the option, the text and the range.
@@ -400,6 +418,30 @@ TEST(Cli, CompareAgreesOnEqualRunsAndDiffersAcrossSeeds) {
                     " --tol-count 1000 --tol-mass 1 --tol-w1 1000")
                 .code,
             0);
+}
+
+// A folder whose tables are not ces-sim's is refused, naming the file,
+// the line and what was expected, never compared as numbers it lacks.
+TEST(Cli, CompareRefusesTablesItDoesNotKnow) {
+  const fs::path& a = tiny_run("formats");
+  const fs::path b = fresh_dir("compare_garbage");
+  for (const char* name : {"bins.csv", "products.csv", "crossings.csv"})
+    fs::copy_file(a / name, b / name);
+  const auto expect_refused = [&](const std::string& message) {
+    const Outcome o = ces_sim("compare " + a.string() + " " + b.string());
+    EXPECT_EQ(o.code, 2) << o.out;
+    EXPECT_NE(o.err.find(message), std::string::npos) << o.err;
+  };
+  std::ofstream(b / "bins.csv") << "garbage\n1\n";
+  expect_refused((b / "bins.csv").string() +
+                 ":1: expected the header collector,bin,from_m,to_m,material,count,mass_kg, "
+                 "found 'garbage'");
+  fs::copy_file(a / "bins.csv", b / "bins.csv", fs::copy_options::overwrite_existing);
+  std::string crossings = read_text(a / "crossings.csv");
+  const std::size_t row = crossings.find('\n') + 1;
+  crossings.insert(row, "1,0.1,0,0,0,0,0,0,far,0.001,1e-06,copper,0,tray,0,near\n");
+  std::ofstream(b / "crossings.csv") << crossings;
+  expect_refused((b / "crossings.csv").string() + ":2: along_m is not a finite number: 'far'");
 }
 
 void expect_same_tables(const fs::path& a, const fs::path& b) {

@@ -99,6 +99,28 @@ CLI::Validator at_least(double least, bool whole) {
       what);
 }
 
+// An output folder: an empty one would silently mean the scene's own.
+const CLI::Validator kFolder(
+    [](std::string& text) { return text.empty() ? "got '', expected a folder" : ""; }, "DIR");
+
+// A first word that is neither a command nor a file is a mistyped command
+// more often than a missing scene ("valdate s.yaml"); CLI11 alone would
+// take it as the scene and complain about what follows.
+std::optional<std::string> unknown_command(const CLI::App& app, int argc, char** argv) {
+  if (argc < 2) return std::nullopt;
+  const std::string word = argv[1];
+  const bool name_like =
+      !word.empty() && word.front() != '-' && word.find_first_of("./\\") == std::string::npos;
+  std::error_code ec;
+  if (!name_like || std::filesystem::exists(word, ec)) return std::nullopt;
+  std::string names;
+  for (const CLI::App* command : app.get_subcommands([](const CLI::App*) { return true; })) {
+    if (command->get_name() == word) return std::nullopt;
+    names += (names.empty() ? "" : ", ") + command->get_name();
+  }
+  return "'" + word + "' is neither a command (" + names + ") nor a scene file";
+}
+
 void add_scene_options(CLI::App& app, Args& args) {
   app.add_option("--set", args.sets, "Override a scene value before validation: key.path=value")
       ->type_name("K=V");
@@ -243,7 +265,8 @@ CLI::App* add_study_command(CLI::App& app, Args& args, StudyArgs& study) {
                   "Output folder to measure against (default: the finest case: DVI before DEM, "
                   "smallest time.step, then smallest solver.tolerance and "
                   "solver.penetration_tolerance, then largest solver.max_iterations)");
-  cmd->add_option("-o,--out", study.options.out_dir, "Study folder (default: study)");
+  cmd->add_option("-o,--out", study.options.out_dir, "Study folder (default: study)")
+      ->check(kFolder);
   cmd->add_option("--jobs", study.options.jobs, "Cases at once (default: the number of cores)")
       ->check(at_least(1, true));
   cmd->add_option("--case", study.only_case, "Run only case K (see --list-cases)");
@@ -340,7 +363,8 @@ int main(int argc, char** argv) {
   });
   app.footer(kExitCodes);
   app.add_option("scene", args.scene, "Scene file (.yaml or .json)");
-  app.add_option("-o,--out", args.out_dir, "Output folder (default: the scene's output.dir)");
+  app.add_option("-o,--out", args.out_dir, "Output folder (default: the scene's output.dir)")
+      ->check(kFolder);
   add_scene_options(app, args);
   app.add_flag("-q,--quiet", args.quiet, "No progress line and no end-of-run report");
 
@@ -383,6 +407,10 @@ int main(int argc, char** argv) {
   CLI::App* study_cmd = add_study_command(app, args, study_args);
   app.require_subcommand(0, 1);
 
+  if (const auto mistake = unknown_command(app, argc, argv)) {
+    std::fprintf(stderr, "ces-sim: %s\n", mistake->c_str());
+    return kBadInput;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

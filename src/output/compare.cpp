@@ -1,39 +1,37 @@
 #include "output/compare.hpp"
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <limits>
 #include <map>
+#include <stdexcept>
 
+#include "common/csv.hpp"
 #include "output/files.hpp"
 #include "output/format.hpp"
+#include "output/tables.hpp"
 
 namespace ces::output {
 namespace {
 
-std::vector<std::string> split(const std::string& line) {
-  std::vector<std::string> fields(1);
-  for (const char c : line) {
-    if (c == ',')
-      fields.emplace_back();
-    else if (c != '\r')
-      fields.back() += c;
+std::vector<std::string> split(std::string_view line) {
+  const auto fields = csv::split(line);
+  return {fields.begin(), fields.end()};
+}
+
+// IoError, as every failure to read a folder is.
+std::ifstream open_table(const std::filesystem::path& file) {
+  try {
+    return csv::open(file);
+  } catch (const std::runtime_error& e) {
+    throw IoError(e.what());
   }
-  return fields;
 }
 
+// NaN for a cell that is not a number: an empty product's grade.
 double number(const std::string& s) {
-  double v = std::numeric_limits<double>::quiet_NaN();
-  std::from_chars(s.data(), s.data() + s.size(), v);
-  return v;
-}
-
-std::string join(const std::vector<std::string>& v) {
-  std::string s;
-  for (const std::string& x : v) s += (s.empty() ? "" : ",") + x;
-  return s;
+  return csv::number(s).value_or(std::numeric_limits<double>::quiet_NaN());
 }
 
 // The columns that name a row of bins.csv or products.csv: the collector,
@@ -102,11 +100,6 @@ std::string compare_cell(const std::string& where, const std::string& column, co
 // collector, bin or product and material name a row.
 void compare_tables(const std::filesystem::path& dir_a, const char* file, const Table& a,
                     const Table& b, const CompareOptions& o, CompareResult& r) {
-  if (a.header != b.header) {
-    r.differences.push_back(std::string(file) + ": columns differ: " + join(a.header) + " vs " +
-                            join(b.header));
-    return;
-  }
   if (a.rows.size() != b.rows.size()) {
     r.differences.push_back(std::string(file) + ": " + std::to_string(a.rows.size()) +
                             " rows vs " + std::to_string(b.rows.size()));
@@ -158,22 +151,32 @@ void compare_landings(const Landings& a, const Landings& b, const CompareOptions
 
 }  // namespace
 
+double Table::number(std::size_t row, std::size_t column, const std::filesystem::path& file) const {
+  const std::string& cell = rows[row][column];
+  if (const auto v = csv::number(cell)) return *v;
+  throw IoError(file.string() + ":" + std::to_string(lines[row]) + ": " + header[column] +
+                " is not a finite number: '" + cell + "'");
+}
+
 std::size_t Table::column(const std::string& name, const std::filesystem::path& file) const {
   const auto it = std::find(header.begin(), header.end(), name);
   if (it == header.end()) throw IoError(file.string() + ": no column '" + name + "'");
   return std::size_t(it - header.begin());
 }
 
-Table read_table(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw IoError("cannot read " + file.string());
+Table read_table(const std::filesystem::path& file, std::string_view expected_header) {
+  std::ifstream in = open_table(file);
   Table t;
   std::string line;
   if (!std::getline(in, line)) throw IoError(file.string() + ": empty file");
-  t.header = split(line);
+  t.header = split(csv::without_bom(line));
+  if (!expected_header.empty() && t.header != split(expected_header))
+    throw IoError(file.string() + ":1: expected the header " + std::string(expected_header) +
+                  ", found '" + std::string(csv::trim(line)) + "'");
   for (int n = 2; std::getline(in, line); ++n) {
-    if (line.empty()) continue;
+    if (csv::trim(line).empty()) continue;
     t.rows.push_back(split(line));
+    t.lines.push_back(n);
     if (t.rows.back().size() != t.header.size())
       throw IoError(file.string() + ":" + std::to_string(n) + ": expected " +
                     std::to_string(t.header.size()) + " fields");
@@ -182,13 +185,15 @@ Table read_table(const std::filesystem::path& file) {
 }
 
 Landings read_landings(const std::filesystem::path& file) {
-  const Table t = read_table(file);
+  const Table t = read_table(file, kCrossingsHeader);
   const std::size_t along = t.column("along_m", file), mass = t.column("mass_kg", file),
                     material = t.column("material", file), collector = t.column("collector", file);
   Landings out;
-  for (const auto& row : t.rows)
-    out[row[material] + " at " + row[collector]].emplace_back(number(row[along]),
-                                                              number(row[mass]));
+  for (std::size_t i = 0; i < t.rows.size(); ++i) {
+    const auto& row = t.rows[i];
+    const double x = t.number(i, along, file), kg = t.number(i, mass, file);
+    out[row[material] + " at " + row[collector]].emplace_back(x, kg);
+  }
   return out;
 }
 
@@ -217,8 +222,9 @@ double wasserstein1(std::vector<std::pair<double, double>> a,
 CompareResult compare_outputs(const std::filesystem::path& a, const std::filesystem::path& b,
                               const CompareOptions& options) {
   CompareResult r;
-  for (const char* file : {"bins.csv", "products.csv"})
-    compare_tables(a, file, read_table(a / file), read_table(b / file), options, r);
+  for (const auto& [file, header] :
+       {std::pair{"bins.csv", kBinsHeader}, std::pair{"products.csv", kProductsHeader}})
+    compare_tables(a, file, read_table(a / file, header), read_table(b / file, header), options, r);
   compare_landings(read_landings(a / "crossings.csv"), read_landings(b / "crossings.csv"), options, r);
   return r;
 }

@@ -7,12 +7,14 @@
 //  - crossings.csv: per collector and material, the Wasserstein-1 distance of
 //    the mass-weighted landing positions along the collector axis within
 //    tol_w1_mm.
-// Differences in layout (columns, bins, products) are always differences.
+// Differences in layout (bins, products) are always differences; a table
+// without the header ces-sim writes is refused.
 #pragma once
 #include <cstdint>
 #include <filesystem>
 #include <map>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -31,13 +33,16 @@ struct CompareResult {
 };
 
 // A CSV table as written by output/tables (no quoting). Throws IoError when
-// the file is missing, empty or ragged, or lacks a requested column.
+// the file is missing, empty or ragged, lacks the expected header (when one
+// is given) or a requested column, or a requested number.
 struct Table {
   std::vector<std::string> header;
   std::vector<std::vector<std::string>> rows;
+  std::vector<int> lines;  // each row's line in the file
   std::size_t column(const std::string& name, const std::filesystem::path& file) const;
+  double number(std::size_t row, std::size_t column, const std::filesystem::path& file) const;
 };
-Table read_table(const std::filesystem::path& file);
+Table read_table(const std::filesystem::path& file, std::string_view expected_header = {});
 
 // Landing positions along the collector axis and masses, per
 // "material at collector", from a crossings.csv.

@@ -76,7 +76,7 @@ std::vector<ProductResult> product_results(const Simulation& sim, const Collecti
 
 std::string bins_csv(const Simulation& sim, const Collection& c,
                      const std::vector<int>& materials) {
-  std::string text = "collector,bin,from_m,to_m,material,count,mass_kg\n";
+  std::string text = std::string(kBinsHeader) + '\n';
   CsvWriter row(text);
   for (std::size_t k = 0; k < sim.collectors.size(); ++k) {
     const Collector& col = sim.collectors[k];
@@ -97,7 +97,7 @@ std::string bins_csv(const Simulation& sim, const Collection& c,
 
 std::string products_csv(const Simulation& sim, const std::vector<ProductResult>& products,
                          const std::vector<int>& materials) {
-  std::string text = "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery\n";
+  std::string text = std::string(kProductsHeader) + '\n';
   CsvWriter row(text);
   for (const ProductResult& r : products) {
     const Collector& col = sim.collectors[std::size_t(r.collector)];
@@ -113,9 +113,7 @@ std::string products_csv(const Simulation& sim, const std::vector<ProductResult>
 }
 
 std::string crossings_csv(const Simulation& sim, const Collection& c) {
-  std::string text =
-      "id,time_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,along_m,diameter_m,mass_kg,material,charge_c,"
-      "collector,bin,product\n";
+  std::string text = std::string(kCrossingsHeader) + '\n';
   CsvWriter row(text);
   for (const Crossing& k : c.crossings()) {
     const Collector& col = sim.collectors[std::size_t(k.collector)];

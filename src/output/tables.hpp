@@ -15,6 +15,7 @@
 #pragma once
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "output/records.hpp"
@@ -45,6 +46,14 @@ struct ProductResult {
 
 std::vector<ProductResult> product_results(const Simulation& sim, const Collection& c,
                                            const std::vector<int>& materials);
+
+// The tables' header lines, which `compare` expects of what it reads.
+inline constexpr std::string_view kBinsHeader = "collector,bin,from_m,to_m,material,count,mass_kg";
+inline constexpr std::string_view kProductsHeader =
+    "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery";
+inline constexpr std::string_view kCrossingsHeader =
+    "id,time_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,along_m,diameter_m,mass_kg,material,charge_c,"
+    "collector,bin,product";
 
 std::string bins_csv(const Simulation& sim, const Collection& c, const std::vector<int>& materials);
 std::string products_csv(const Simulation& sim, const std::vector<ProductResult>& products,
