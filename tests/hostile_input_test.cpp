@@ -193,6 +193,26 @@ TEST(HostileOverrides, KeyPathsAreBounded) {
   expect_one(load_errors(scene, index), "'bodies' has no item '99999999999999999999999'");
 }
 
+TEST(HostileOverrides, MessagesSayWhatAPathIs) {
+  const fs::path scene = write(test::fresh_dir("set_messages") / "s.yaml",
+                               std::string(kMinimal) +
+                                   "materials: {steel: {}}\n"
+                                   "bodies: [{name: a, geometry: {box: {size: [1, 1, 1]}}, "
+                                   "material: steel}]\n");
+  LoadOptions blank;
+  blank.removals = {""};
+  expect_one(load_errors(scene, blank),
+             "--unset:1:1: invalid key path '', expected keys, indices or item names joined by "
+             "dots");
+  // An --unset comes first whatever the order on the command line.
+  LoadOptions emptied;
+  emptied.removals = {"bodies.a"};
+  emptied.overrides = {{"bodies.a.material", "steel"}};
+  expect_one(load_errors(scene, emptied),
+             "'bodies' has no item 'a', the list is empty (every --unset comes before the --set "
+             "values)");
+}
+
 TEST(HostileOverrides, ValuesAreHeldToTheSameBounds) {
   const fs::path scene = write(test::fresh_dir("set_values") / "s.yaml", kMinimal);
   LoadOptions utf8;
@@ -230,10 +250,26 @@ TEST(HostileDocuments, DeepNestingIsAnErrorNotACrash) {
     ASSERT_FALSE(errors.empty());
     EXPECT_GT(errors[0].line, 0) << all(errors);
   }
+  // Past yaml-cpp's own guard (about 500 levels), which says "bad file".
+  std::string indented = kMinimal;
+  for (int level = 0; level < 600; ++level) indented += std::string(2 * level, ' ') + "a:\n";
+  expect_one(text_errors(indented, "indented.yaml"), "nested deeper than 32 levels");
   expect_one(text_errors("{\"ces_sim\": 1, \"seed\": " + std::string(40, '[') + "1" +
                              std::string(40, ']') + "}",
                          "deep40.json"),
              "nested deeper than 32 levels");
+}
+
+// yaml-cpp reads '<<' as an ordinary key: without a word of its own it
+// would be "unknown key '<<'".
+TEST(HostileDocuments, MergeKeysAreNamedAsUnsupported) {
+  const auto errors = text_errors(std::string(kMinimal) +
+                                      "solver: &s {max_iterations: 5}\n"
+                                      "contact:\n  <<: *s\n",
+                                  "merge.yaml");
+  expect_one(errors,
+             "merge.yaml:5:3: contact.<<: a YAML merge key ('<<'), which ces-sim does "
+             "not support");
 }
 
 // Long plain scalars once overflowed the stack of std::regex; long digit
@@ -326,6 +362,31 @@ TEST(HostileSemantics, BareNumbersOnlyWhereUnambiguous) {
   expect_one(text_errors(with("30"), "bare.yaml"),
              "bodies[0].pose.rotation.angle: a number without a unit is ambiguous here, "
              "expected an angle (rad)");
+}
+
+// A particle lighter than the balance's unit or heavier than its bound
+// is refused at the mix item, not at the step that draws one.
+TEST(HostileSemantics, ParticleMassesOutsideTheBalanceAreRefusedAtTheirLine) {
+  const std::string scene = std::string(kMinimal) +
+                            "gravity: [0, -9.81, 0]\n"
+                            "materials: {copper: {density: 8960 kg/m^3}}\n"
+                            "feeds:\n"
+                            "  - name: f\n"
+                            "    region: {box: {min: [0, 0, 0], max: [0.1, 0.1, 0.1]}}\n"
+                            "    rate: 10 /s\n"
+                            "    mix:\n"
+                            "      - {material: copper, size: {uniform: {min: MIN, max: 1 mm}}}\n";
+  const auto with = [&](const std::string& min) {
+    std::string text = scene;
+    text.replace(text.find("MIN"), 3, min);
+    return text;
+  };
+  EXPECT_NO_THROW(load_text(with("0.2 um"), "/tmp/fine.yaml"));
+  // 1 nm of copper: 4.7e-24 kg.
+  const auto errors = text_errors(with("1 nm"), "dust.yaml");
+  expect_one(errors,
+             "dust.yaml:10:9: feeds[0].mix[0]: feed 'f' makes particles of 4.69145e-24 "
+             "kg, expected 1e-18 to 1e+09 kg");
 }
 
 // A region partly inside a body can still place particles: only a region

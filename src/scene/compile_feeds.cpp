@@ -1,3 +1,4 @@
+#include "common/tally.hpp"
 #include "scene/compiler.hpp"
 
 namespace ces::scene {
@@ -93,6 +94,13 @@ std::vector<double> Compiler::read_mix(const Node& mix, Feed& feed) {
       component.material = *material;
       across.push_back(shapes_.drawn_across(*drawn));
       component.drawn = std::move(*drawn);
+      const Node& extent = c.find("width") ? c.at("width") : c.at("length");
+      const std::array<double, 2> volume = {
+          component.drawn->volume(law_end(component.drawn->thickness, c.at("thickness"), false),
+                                  law_end(component.drawn->extent, extent, false)),
+          component.drawn->volume(law_end(component.drawn->thickness, c.at("thickness"), true),
+                                  law_end(component.drawn->extent, extent, true))};
+      check_masses(c, component, volume, feed.name);
       feed.mix.push_back(component);
       continue;
     }
@@ -110,22 +118,47 @@ std::vector<double> Compiler::read_mix(const Node& mix, Feed& feed) {
     component.shape = *shape;
     component.shape_size = shapes_.size(*shape);
     component.size = *size;
+    const double smallest = law_end(*size, c.at("size"), false) / component.shape_size;
+    const double largest = law_end(*size, c.at("size"), true) / component.shape_size;
+    const double unit_volume = model_->shapes[std::size_t(*shape)].volume;
+    check_masses(
+        c, component,
+        {unit_volume * smallest * smallest * smallest, unit_volume * largest * largest * largest},
+        feed.name);
     feed.mix.push_back(component);
-    const double diameter = size->quantile_by_number(is_bounded(c.at("size")) ? 1.0 : 1.0 - 1e-6);
-    across.push_back(2.0 * model_->shapes[std::size_t(*shape)].bounding_radius * diameter /
-                     component.shape_size);
+    across.push_back(2.0 * model_->shapes[std::size_t(*shape)].bounding_radius * largest);
   }
   if (std::abs(total - 1.0) > 1e-9)
     diags_.error(mix, "the fractions add up to " + format(total) + ", expected 1");
   return across;
 }
 
-// Normal and lognormal laws without a max have no largest particle: their
-// one-in-a-million size stands in for it.
-bool Compiler::is_bounded(const Node& size) {
-  const Entry& law = size.entries.front();
-  return law.key == "constant" || law.key == "uniform" || law.key == "sieve" ||
-         law.value.find("max");
+// The diameter of a law's smallest (upper: largest) particles. Normal and
+// lognormal laws without a min (max) have none: their one-in-a-million
+// size stands in for it.
+double Compiler::law_end(const feed::SizeDistribution& d, const Node& law, bool upper) {
+  const Entry& e = law.entries.front();
+  const bool closed = e.key == "constant" || e.key == "uniform" || e.key == "sieve" ||
+                      e.value.find(upper ? "max" : "min");
+  const double q = closed ? 0.0 : 1e-6;
+  return d.quantile_by_number(upper ? 1.0 - q : q);
+}
+
+// The masses of a component's lightest and heaviest particles (from the
+// volumes of its smallest and largest) against those the balance counts
+// exactly: refused here, with the line, rather than at the step that
+// draws one.
+void Compiler::check_masses(const Node& c, const FeedComponent& component,
+                            const std::array<double, 2>& volume, const std::string& feed) {
+  const double density = model_->materials.materials()[std::size_t(component.material)].density;
+  for (const double v : volume) {
+    if (tally_holds(density * v)) continue;
+    diags_.error(c, "feed '" + feed + "' makes particles of " + format(density * v) +
+                        " kg, expected " + format(kMassUnit) + " to " + format(kMaxParticleMass) +
+                        " kg, the masses the balance counts exactly (check the sizes and the "
+                        "density)");
+    return;
+  }
 }
 
 // The largest particles against the region's extent (an outlet's

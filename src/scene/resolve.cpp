@@ -280,7 +280,10 @@ std::optional<std::vector<std::string>> override_segments(const std::string& key
   std::vector<std::string> segments = split_path(key_path);
   const bool blank =
       std::any_of(segments.begin(), segments.end(), [](const auto& s) { return s.empty(); });
-  if (segments.empty() || blank) return fail(shown, "invalid override path, expected key.path=value");
+  if (segments.empty() || blank)
+    return fail(shown, "invalid key path '" + cut +
+                           "', expected keys, indices or item names "
+                           "joined by dots (feeds.nozzle.rate)");
   if (segments.size() > std::size_t(limits::kNesting))
     return fail(cut, "a key path of " + std::to_string(segments.size()) +
                          " segments, expected at most " + std::to_string(limits::kNesting));
@@ -311,10 +314,13 @@ Node* override_target(Node& root, const std::vector<std::string>& segments,
       child = &n->entries.back().value;
       child->mark = mark;
     } else if (!child && n->is_sequence()) {
-      diags.error(mark, shown,
-                  "invalid override path: '" + walked + "' has no item '" + excerpt(s) +
-                      "', expected an index below " + std::to_string(n->items.size()) +
-                      " or the name of an item");
+      const std::string expected =
+          n->items.empty() ? "the list is empty (every --unset comes before the --set values)"
+                           : "expected an index below " + std::to_string(n->items.size()) +
+                                 " or the name of an item";
+      diags.error(
+          mark, shown,
+          "invalid override path: '" + walked + "' has no item '" + excerpt(s) + "', " + expected);
       return nullptr;
     } else if (!child) {
       diags.error(mark, shown,

@@ -99,7 +99,7 @@ std::vector<DrawnShape::Rung> ShapeReader::ladder(const std::string& name, doubl
     made[k] = make_particle_shape(spheres.centers, spheres.radii);
   }
   for (std::size_t k = 0; k < fresh.size(); ++k)
-    shape_index_[rung_key(name, fresh[k])] = add_shape(made[k], nullptr, name);
+    shape_index_[rung_key(name, fresh[k])] = *add_shape(made[k], nullptr, name);
   std::vector<DrawnShape::Rung> out;
   for (const double a : reached) out.push_back(rung(name, a));
   return out;
@@ -243,16 +243,18 @@ std::optional<feed::SphereList> ShapeReader::cluster_spheres(const Node& entry) 
 // the built-in flake and rod the diameter of the sphere of equal volume,
 // so that a size law gives the same masses whatever the built-in shape
 // (the unit sphere's is exactly 1).
-int ShapeReader::add_shape(const ParticleShape& shape, const Node* entry,
-                           const std::string& name) {
+std::optional<int> ShapeReader::add_shape(const ParticleShape& shape, const Node* entry,
+                                          const std::string& name) {
   const Node* size = entry ? entry->find("size") : nullptr;
   // A size far from the spheres' own extent makes particles whose spheres
   // are specks, or giants, of the size the feed draws.
   const double ratio = size ? size->number() / (2.0 * shape.bounding_radius) : 1.0;
-  if (!(ratio <= limits::kShapeSpan && ratio >= 1.0 / limits::kShapeSpan))
+  if (!(ratio <= limits::kShapeSpan && ratio >= 1.0 / limits::kShapeSpan)) {
     diags_.error(*size, "size " + format(size->number()) + " is " + format(ratio) +
                             " times the spheres' bounding diameter, expected within a factor " +
                             format(limits::kShapeSpan) + " of it");
+    return std::nullopt;
+  }
   if (size)
     sizes_.push_back(size->number());
   else if (entry)

@@ -51,7 +51,8 @@ class ShapeReader {
                                      bool scene_entry);
   static feed::SphereList builtin_spheres(const std::string& name, double aspect);
   std::optional<feed::SphereList> cluster_spheres(const Node& entry);
-  int add_shape(const ParticleShape& shape, const Node* entry, const std::string& name);
+  std::optional<int> add_shape(const ParticleShape& shape, const Node* entry,
+                               const std::string& name);
   std::optional<feed::SizeDistribution> sieve(const Node& rows, feed::Basis basis);
   std::nullopt_t sieve_error(const Node& row, const std::string& what);
 

@@ -1,6 +1,6 @@
 #include "scene/tree.hpp"
 
-#include <vector>
+#include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <map>
 #include <stdexcept>
+#include <vector>
 
 #include "scene/diagnostics.hpp"
 #include "scene/limits.hpp"
@@ -82,6 +83,11 @@ std::optional<nlohmann::json> resolve_plain(const std::string& s) {
   return s;
 }
 
+std::string nested_too_deep() {
+  return "nested deeper than " + std::to_string(limits::kNesting) + " levels, expected at most " +
+         std::to_string(limits::kNesting) + " levels of mappings and lists";
+}
+
 // The place of byte `offset` of `text`.
 Mark mark_at(const std::string& text, std::size_t offset, const std::string& file) {
   const auto at = text.begin() + std::ptrdiff_t(offset);
@@ -144,9 +150,7 @@ class Converter {
     const std::size_t bytes = path.size() + (y.IsScalar() ? y.Scalar().size() : 0);
     std::string broken;
     if (depth > limits::kNesting) {
-      broken = "nested deeper than " + std::to_string(limits::kNesting) +
-               " levels, expected at most " + std::to_string(limits::kNesting) +
-               " levels of mappings and lists";
+      broken = nested_too_deep();
     } else if (path.size() > limits::kPathBytes) {
       broken = "a key path longer than " + std::to_string(limits::kPathBytes) +
                " characters, expected shorter keys or less nesting";
@@ -198,6 +202,12 @@ class Converter {
       }
       const std::string key = it->first.Scalar();
       const std::string key_path = path.empty() ? key : path + "." + key;
+      if (key == "<<" && it->first.Tag() == "?") {
+        diags_.error(key_mark, excerpt(key_path, limits::kPathBytes),
+                     "a YAML merge key ('<<'), which ces-sim does not support; expected the "
+                     "keys written out, or shared values in an included file");
+        continue;
+      }
       const auto [first, inserted] = seen.emplace(key, key_mark);
       if (!inserted) {
         diags_.error(key_mark, excerpt(key_path, limits::kPathBytes),
@@ -361,6 +371,10 @@ std::optional<Node> parse(const std::string& text, const std::string& file, bool
     Node tree = converter.convert(root, {file, 1, 1});
     if (converter.stopped()) return std::nullopt;
     return tree;
+  } catch (const YAML::DeepRecursion& e) {
+    // yaml-cpp's own guard, far deeper than ours: its message says "bad file".
+    diags.error({file, e.mark.line + 1, e.mark.column + 1}, "", nested_too_deep());
+    return std::nullopt;
   } catch (const YAML::Exception& e) {
     diags.error({file, e.mark.line + 1, e.mark.column + 1}, "", "invalid YAML: " + e.msg);
     return std::nullopt;
