@@ -76,10 +76,16 @@ std::string type_of(const ojson& s) {
     if (has_type(d, "object")) return link(ref, ref);
     return type_of(d);
   }
-  if (has_type(s, "array")) return type_of_items(s);
-  if (s.contains("type") && s["type"].is_string()) return s["type"].get<std::string>();
-  if (s.contains("type")) return "number or string";
-  return "";
+  if (s.contains("const")) return code(s["const"].dump());
+  if (!s.contains("type")) return "";
+  if (s["type"].is_string())
+    return has_type(s, "array") ? type_of_items(s) : s["type"].get<std::string>();
+  std::string out;  // a list of types: "string or list of string"
+  for (const ojson& t : s["type"]) {
+    if (!out.empty()) out += " or ";
+    out += t == "array" ? type_of_items(s) : t.get<std::string>();
+  }
+  return out;
 }
 
 std::string range_of(const ojson& s) {
