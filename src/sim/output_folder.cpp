@@ -20,16 +20,36 @@ bool safe_relative(const std::string& name) {
                       [](const fs::path& part) { return part == ".." || part == "."; });
 }
 
-// Whether `name` in `dir` is a file (or a link) that lies in `dir` itself:
-// a listed 'sub/x' whose 'sub' links elsewhere names another folder's file.
-bool removable(const fs::path& dir, const std::string& name) {
-  const fs::path path = dir / name;
-  const fs::file_status status = fs::symlink_status(path);
-  if (!fs::is_regular_file(status) && !fs::is_symlink(status)) return false;
-  const fs::path parent = fs::weakly_canonical(path.parent_path());
-  const fs::path within = parent.lexically_relative(fs::weakly_canonical(dir));
-  return !within.empty() && *within.begin() != "..";
+// The files a run's summary.json lists (relative paths), or none.
+std::vector<std::string> listed_files(const fs::path& summary_json) {
+  std::error_code not_a_file;  // a folder in its place lists nothing
+  if (!fs::is_regular_file(summary_json, not_a_file)) return {};
+  std::ifstream in(summary_json);
+  if (!in) return {};
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  std::vector<std::string> files;
+  if (j.is_discarded() || !j.contains("files") || !j["files"].is_array()) return files;
+  for (const nlohmann::json& f : j["files"])
+    if (f.is_string() && safe_relative(f.get<std::string>())) files.push_back(f.get<std::string>());
+  return files;
 }
+
+// A folder, resolved once for every file checked in it.
+struct Folder {
+  explicit Folder(const fs::path& p) : path(p), real(fs::weakly_canonical(p)) {}
+
+  // Whether `name` is a file (or a link) that lies in the folder itself: a
+  // listed 'sub/x' whose 'sub' links elsewhere names another folder's file.
+  bool holds(const std::string& name) const {
+    const fs::path file = path / name;
+    const fs::file_status status = fs::symlink_status(file);
+    if (!fs::is_regular_file(status) && !fs::is_symlink(status)) return false;
+    const fs::path within = fs::weakly_canonical(file.parent_path()).lexically_relative(real);
+    return !within.empty() && *within.begin() != "..";
+  }
+
+  fs::path path, real;
+};
 
 // What an unfinished run may have left in its work folder: the files its
 // summary lists, the checkpoint, and the names every run writes as it goes.
@@ -40,10 +60,11 @@ void clear_work(const fs::path& work) {
                            "trajectories.pvd", "trajectories/machine_static.vtp", "field.csv",
                            "field.svg"})
     names.emplace_back(name);
+  const Folder folder(work);
   for (const std::string& name : names) {
     if (!safe_relative(name)) continue;
-    if (removable(work, name)) fs::remove(work / name);
-    if (removable(work, name + ".tmp")) fs::remove(work / (name + ".tmp"));
+    if (folder.holds(name)) fs::remove(work / name);
+    if (folder.holds(name + ".tmp")) fs::remove(work / (name + ".tmp"));
   }
   if (fs::is_directory(work / "trajectories"))
     for (const fs::directory_entry& e : fs::directory_iterator(work / "trajectories"))
@@ -66,19 +87,6 @@ void io(const std::string& what, const fs::path& path, const fs::filesystem_erro
 }
 
 }  // namespace
-
-std::vector<std::string> listed_files(const fs::path& summary_json) {
-  std::error_code not_a_file;  // a folder in its place lists nothing
-  if (!fs::is_regular_file(summary_json, not_a_file)) return {};
-  std::ifstream in(summary_json);
-  if (!in) return {};
-  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
-  std::vector<std::string> files;
-  if (j.is_discarded() || !j.contains("files") || !j["files"].is_array()) return files;
-  for (const nlohmann::json& f : j["files"])
-    if (f.is_string() && safe_relative(f.get<std::string>())) files.push_back(f.get<std::string>());
-  return files;
-}
 
 OutputFolder::OutputFolder(fs::path dir, output::Start start)
     : dir_(std::move(dir)), work_(dir_ / "partial") {
@@ -104,8 +112,9 @@ void OutputFolder::publish(const std::vector<std::string>& files) const {
       fs::create_directories((dir_ / f).parent_path());
       fs::rename(work_ / f, dir_ / f);
     }
+    const Folder out(dir_);
     for (const std::string& f : earlier)
-      if (removable(dir_, f) && std::find(files.begin(), files.end(), f) == files.end())
+      if (out.holds(f) && std::find(files.begin(), files.end(), f) == files.end())
         fs::remove(dir_ / f);
     fs::rename(work_ / "summary.json", dir_ / "summary.json");
     clear_work(work_);

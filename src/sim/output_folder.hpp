@@ -37,7 +37,4 @@ class OutputFolder {
   std::filesystem::path dir_, work_;
 };
 
-// The files a run's summary.json lists (relative paths), or none.
-std::vector<std::string> listed_files(const std::filesystem::path& summary_json);
-
 }  // namespace ces
