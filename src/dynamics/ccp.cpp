@@ -14,11 +14,6 @@ double row_mass(const SolverBodies& B, int i, const Vec3& lin, const Vec3& ang) 
   return B.inv_mass[u] * lin.squaredNorm() + ang.dot(B.inv_inertia[u] * ang);
 }
 
-Vec3 point_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w, int i, const Vec3& r) {
-  const auto u = std::size_t(i);
-  return v[u] + w[u].cross(r);
-}
-
 // A yielding contact's row (CcpProblem::softness): a spring k = 1 / C with a
 // dashpot c in parallel, stepped by backward Euler. Its force at the end of
 // the step, F = -k (gap + h v_n) - c v_n, is gamma / h; so
@@ -42,10 +37,9 @@ SoftRow soft_row(double compliance, double zeta, double normal_mass, double gap,
 double rigid_bias(const Contacts& c, std::size_t k, double restitution, const SolverBodies& B,
                   double h, const ContactSettings& settings) {
   const Vec3& n = c.normal[k];
-  const int a = c.body_a[k], b = c.body_b[k];
-  const Vec3 ra = c.point[k] - B.x[std::size_t(a)], rb = c.point[k] - B.x[std::size_t(b)];
   double bias = std::max(c.gap[k] / h, -settings.recovery_speed);
-  const double approach = n.dot(point_velocity(B.v, B.w, b, rb) - point_velocity(B.v, B.w, a, ra));
+  const double approach =
+      n.dot(B.velocity_at(c.body_b[k], c.point[k]) - B.velocity_at(c.body_a[k], c.point[k]));
   const bool impact = approach < -settings.restitution_threshold && c.gap[k] + h * approach < 0.0;
   if (impact && restitution > 0.0) bias = std::min(bias, restitution * approach);
   return bias;

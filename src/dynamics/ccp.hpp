@@ -91,6 +91,11 @@ struct SolverBodies {
   std::vector<double> inv_mass;      // 0 for static and kinematic bodies
   std::vector<Mat3> inv_inertia;     // world frame
   void resize(std::size_t n);
+  // Body i's velocity at the world point x, at the start of the step.
+  Vec3 velocity_at(int i, const Vec3& x) const {
+    const auto u = std::size_t(i);
+    return v[u] + w[u].cross(x - this->x[u]);
+  }
 };
 
 // One bilateral row: J v + bias = 0 with impulse in [lo, hi].

@@ -47,11 +47,6 @@ int material_of(const Model& m, const Particles& p, int body) {
   return i < p.size() ? p.material[i] : m.bodies[i - p.size()].material;
 }
 
-Vec3 point_velocity(const SolverBodies& B, int i, const Vec3& r) {
-  const auto u = std::size_t(i);
-  return B.v[u] + B.w[u].cross(r);
-}
-
 }  // namespace
 
 double hertz_restitution(double beta) { return rebound_speed(beta); }
@@ -148,8 +143,7 @@ void DemContacts::contact_force(const Model& m, const Particles& p, const Contac
   const PairConstants pc = pair_constants(m, p, c, k, B);
   const Vec3& n = c.normal[k];
   const int a = c.body_a[k], b = c.body_b[k];
-  const Vec3 rel = point_velocity(B, b, c.point[k] - B.x[std::size_t(b)]) -
-                   point_velocity(B, a, c.point[k] - B.x[std::size_t(a)]);
+  const Vec3 rel = B.velocity_at(b, c.point[k]) - B.velocity_at(a, c.point[k]);
   const double vn = n.dot(rel);
   const Vec3 vt = rel - vn * n;
   const double root = std::sqrt(pc.r_star * -c.gap[k]);

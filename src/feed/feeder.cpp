@@ -39,14 +39,15 @@ bool clusters_overlap(const ParticleShape& a, double scale_a, const Vec3& xa, co
   return false;
 }
 
+// The seed of the feed's particle number `ordinal` (0 for its first).
+std::uint64_t particle_seed(std::uint64_t feed_stream, std::uint64_t ordinal) {
+  return splitmix64(feed_stream ^ splitmix64(ordinal));
+}
+
 }  // namespace
 
 std::uint64_t stream_seed(std::uint64_t scene_seed, std::string_view feed_name) {
   return splitmix64(scene_seed ^ splitmix64(fnv1a(feed_name)));
-}
-
-std::uint64_t particle_seed(std::uint64_t feed_stream, std::uint64_t ordinal) {
-  return splitmix64(feed_stream ^ splitmix64(ordinal));
 }
 
 Tally FeedStats::total() const {
@@ -250,8 +251,7 @@ void Feeder::find_neighbours(const State& state) {
   const Particles& p = state.particles;
   const geo::Aabb& region = feed_.region;
   for (std::size_t i = 0; i < p.size(); ++i) {
-    const double reach =
-        max_bounding_radius_ + p.scale[i] * model_->shapes[std::size_t(p.shape[i])].bounding_radius;
+    const double reach = max_bounding_radius_ + bounding_radius(*model_, p, i);
     const Vec3 outside =
         (region.min - p.position[i]).cwiseMax(p.position[i] - region.max).cwiseMax(0.0);
     if (outside.squaredNorm() <= reach * reach) neighbours_.push_back(i);
@@ -265,7 +265,7 @@ void Feeder::find_neighbours(const State& state) {
 void Feeder::grid_neighbours(const Particles& p) {
   double largest = 0.0;  // of the neighbours' bounding radii
   for (const std::size_t i : neighbours_)
-    largest = std::max(largest, p.scale[i] * model_->shapes[std::size_t(p.shape[i])].bounding_radius);
+    largest = std::max(largest, bounding_radius(*model_, p, i));
   sort_neighbours(p, max_bounding_radius_ + largest);
 }
 

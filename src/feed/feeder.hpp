@@ -36,8 +36,6 @@ namespace ces::feed {
 // splitmix64(seed ^ splitmix64(FNV-1a 64 of the name)): fixed across
 // platforms and standard libraries.
 std::uint64_t stream_seed(std::uint64_t scene_seed, std::string_view feed_name);
-// The seed of the feed's particle number `ordinal` (0 for its first).
-std::uint64_t particle_seed(std::uint64_t feed_stream, std::uint64_t ordinal);
 
 struct FeedStats {
   std::vector<Tally> fed;  // per mix component

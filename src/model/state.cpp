@@ -137,6 +137,8 @@ std::uint64_t add_particle(State& state, int shape, double scale, int material, 
   return id;
 }
 
+namespace {
+
 void prescribed_state(const RigidBody& b, double t, Pose& pose, Vec3& v, Vec3& w) {
   const PrescribedMotion& m = b.motion;
   const Vec3 axis = m.axis.normalized();
@@ -147,6 +149,8 @@ void prescribed_state(const RigidBody& b, double t, Pose& pose, Vec3& v, Vec3& w
   w = m.angular_speed * axis;
   v = m.linear_velocity + w.cross(pose.position - centre);
 }
+
+}  // namespace
 
 void set_body_motion(const Model& model, double t, Bodies& bodies) {
   for (std::size_t i = 0; i < model.bodies.size(); ++i) {

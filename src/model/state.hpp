@@ -126,9 +126,7 @@ std::uint64_t add_particle(State& state, int shape, double scale, int material, 
                            const Vec3& inertia, const Vec3& position, const Quat& orientation,
                            const Vec3& velocity, const Vec3& angular_velocity = Vec3::Zero());
 
-// Pose and velocity of a kinematic body at time t, in closed form.
-void prescribed_state(const RigidBody& body, double t, Pose& pose, Vec3& v, Vec3& w);
-// Every kinematic body at time t.
+// Every kinematic body's pose and velocity at time t, in closed form.
 void set_body_motion(const Model& model, double t, Bodies& bodies);
 
 }  // namespace ces

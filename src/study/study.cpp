@@ -27,6 +27,24 @@ namespace ces::study {
 namespace fs = std::filesystem;
 namespace {
 
+struct Row {
+  Case c;
+  bool complete = false;
+  double wall_s = 0.0;
+  std::string method;
+  std::string contact_model = "dvi";
+  double residual_p95 = 0.0;
+  long steps_at_cap = 0;
+  double penetration_relative = 0.0;
+  Errors errors;
+};
+
+// One shell command per case, in case order: this binary's study command
+// with --case K (which runs the case and marks it done).
+std::string case_commands(const Options& o);
+// The Slurm job array that runs case_commands(), one task per case.
+std::string slurm_script(const Options& o);
+
 constexpr const char* kCaseStamp = "study_case.txt";  // the command line a case ran with
 
 std::vector<std::string> split(const std::string& s, char sep) {
@@ -318,8 +336,6 @@ void axes_svg(const Frame& f, std::ostringstream& out) {
          "drawn)</text>\n";
 }
 
-}  // namespace
-
 std::string study_svg(const std::vector<Row>& rows) {
   struct Point {
     double wall, error;
@@ -364,82 +380,9 @@ std::string study_svg(const std::vector<Row>& rows) {
   return out.str();
 }
 
-Axis parse_axis(const std::string& spec) {
-  const auto eq = spec.find('=');
-  if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
-    throw std::invalid_argument("--vary " + spec + ": expected key.path=v1,v2,...");
-  Axis a{spec.substr(0, eq), split(spec.substr(eq + 1), ',')};
-  const std::size_t keys = axis_keys(a).size();
-  for (const std::string& v : a.values) {
-    const std::vector<std::string> parts = split(v, ':');
-    if (std::any_of(parts.begin(), parts.end(), [](const auto& p) { return p.empty(); }))
-      throw std::invalid_argument("--vary " + spec + ": empty value");
-    if (parts.size() != keys)
-      throw std::invalid_argument("--vary " + spec + ": '" + v + "' has " +
-                                  std::to_string(parts.size()) + " values for " +
-                                  std::to_string(keys) + " keys");
-    if (std::count(a.values.begin(), a.values.end(), v) > 1)
-      throw std::invalid_argument("--vary " + spec + ": '" + v +
-                                  "' twice, expected each value once (two cases would be one)");
-  }
-  return a;
-}
-
-std::vector<Axis> parse_axes(const std::vector<std::string>& specs) {
-  std::vector<Axis> axes;
-  std::vector<std::string> keys;
-  for (const std::string& spec : specs) {
-    axes.push_back(parse_axis(spec));
-    for (const std::string& k : axis_keys(axes.back())) {
-      // The later --set of a key wins: a key on two axes would label
-      // cases by values none of them ran with.
-      if (std::find(keys.begin(), keys.end(), k) != keys.end())
-        throw std::invalid_argument("--vary " + spec + ": '" + k +
-                                    "' is varied twice, expected each key on one axis");
-      keys.push_back(k);
-    }
-  }
-  return axes;
-}
-
 std::vector<std::string> axis_keys(const Axis& a) { return split(a.key, ':'); }
 
-std::vector<Case> make_cases(const std::vector<Axis>& axes) {
-  std::vector<Case> cases(1);
-  for (const Axis& axis : axes) {
-    const std::vector<std::string> keys = axis_keys(axis);
-    std::vector<Case> next;
-    for (const Case& c : cases)
-      for (const std::string& v : axis.values) {
-        next.push_back(c);
-        const std::vector<std::string> parts = split(v, ':');
-        for (std::size_t k = 0; k < keys.size(); ++k)
-          next.back().sets.emplace_back(keys[k], parts[k]);
-      }
-    cases = std::move(next);
-  }
-  for (std::size_t k = 0; k < cases.size(); ++k) cases[k].index = k;
-  return cases;
-}
-
-std::vector<std::string> case_arguments(const Options& o, const Case& c) {
-  // Absolute paths: the command is the case's stamp (already_done), the
-  // same from this study and from a scheduler's --case process, which is
-  // given them absolute.
-  std::vector<std::string> args{full_path(o.scene), "-o",
-                                full_path(case_dir(o, c)), "--quiet"};
-  for (const std::string& k : o.base_unsets) args.insert(args.end(), {"--unset", k});
-  for (const Sets* sets : {&o.base_sets, &c.sets})
-    for (const auto& [k, v] : *sets) {
-      args.push_back("--set");
-      args.push_back(k + "=" + v);
-    }
-  if (o.seed) args.insert(args.end(), {"--seed", std::to_string(*o.seed)});
-  for (const std::string& folder : o.include_paths)
-    args.insert(args.end(), {"--include-path", full_path(folder)});
-  return args;
-}
-
+// Index of the finest case, from each case's compiled scene.
 std::size_t finest_case(const Options& o, const std::vector<Case>& cases) {
   using Finest = std::tuple<bool, double, double, double, int>;
   constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -465,32 +408,6 @@ std::size_t finest_case(const Options& o, const std::vector<Case>& cases) {
     }
   }
   return best;
-}
-
-Errors measure(const fs::path& run, const fs::path& reference) {
-  Errors e;
-  const output::Landings a = output::read_landings(run / "crossings.csv");
-  const output::Landings b = output::read_landings(reference / "crossings.csv");
-  for (const auto* side : {&a, &b})
-    for (const auto& [key, samples] : *side) {
-      const auto ia = a.find(key), ib = b.find(key);
-      e.w1_mm[key] = ia == a.end() || ib == b.end()
-                         ? std::numeric_limits<double>::infinity()
-                         : 1e3 * output::wasserstein1(ia->second, ib->second);
-    }
-  for (const auto& [key, w1] : e.w1_mm) e.w1_max_mm = std::max(e.w1_max_mm, w1);
-  const ProductFigures fa = main_material_figures(run / "products.csv"),
-                       fb = main_material_figures(reference / "products.csv");
-  for (const auto& [product, a] : fa) {
-    const auto b = fb.find(product);
-    if (b == fb.end()) continue;
-    e.grade = std::max(e.grade, std::abs(a.first - b->second.first));
-    e.recovery = std::max(e.recovery, std::abs(a.second - b->second.second));
-  }
-  std::ifstream in(run / "summary.json");
-  const auto j = nlohmann::json::parse(in, nullptr, false);
-  e.balance_exact = !j.is_discarded() && j["balance"].value("exact", false);
-  return e;
 }
 
 std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& rows) {
@@ -560,6 +477,8 @@ constexpr const char* kPlotLoads =
     "onload=\"document.body.dataset.rendered = 'ok'\" "
     "onerror=\"document.body.dataset.error = 'the work-precision plot does not load'\"";
 
+// DIR/report.html: the work-precision plot, the table and a link to each
+// case's own report.
 std::string study_report(const std::vector<Case>& cases, const fs::path& reference,
                          const std::string& table, const std::string& svg) {
   std::string links;
@@ -574,13 +493,6 @@ std::string study_report(const std::vector<Case>& cases, const fs::path& referen
          output::xml_escape(reference.string()) + "</p>\n<img alt=\"work-precision\" " +
          kPlotLoads + " src=\"data:image/svg+xml;base64," + output::base64(svg) + "\">\n<pre>" +
          output::xml_escape(table) + "</pre>\n<p>each case's report: " + links + "</p>\n</body>\n</html>\n";
-}
-
-Scheduler parse_scheduler(const std::string& name) {
-  if (name == "local") return Scheduler::Local;
-  if (name == "parallel") return Scheduler::Parallel;
-  if (name == "slurm") return Scheduler::Slurm;
-  throw std::invalid_argument("--scheduler " + name + ": expected local, parallel or slurm");
 }
 
 std::string case_commands(const Options& o) {
@@ -605,6 +517,114 @@ std::string slurm_script(const Options& o) {
          "line=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" " + shell_quoted(commands.string()) +
          ")\n"
          "bash -c \"$line\"\n";
+}
+
+}  // namespace
+
+Axis parse_axis(const std::string& spec) {
+  const auto eq = spec.find('=');
+  if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
+    throw std::invalid_argument("--vary " + spec + ": expected key.path=v1,v2,...");
+  Axis a{spec.substr(0, eq), split(spec.substr(eq + 1), ',')};
+  const std::size_t keys = axis_keys(a).size();
+  for (const std::string& v : a.values) {
+    const std::vector<std::string> parts = split(v, ':');
+    if (std::any_of(parts.begin(), parts.end(), [](const auto& p) { return p.empty(); }))
+      throw std::invalid_argument("--vary " + spec + ": empty value");
+    if (parts.size() != keys)
+      throw std::invalid_argument("--vary " + spec + ": '" + v + "' has " +
+                                  std::to_string(parts.size()) + " values for " +
+                                  std::to_string(keys) + " keys");
+    if (std::count(a.values.begin(), a.values.end(), v) > 1)
+      throw std::invalid_argument("--vary " + spec + ": '" + v +
+                                  "' twice, expected each value once (two cases would be one)");
+  }
+  return a;
+}
+
+std::vector<Axis> parse_axes(const std::vector<std::string>& specs) {
+  std::vector<Axis> axes;
+  std::vector<std::string> keys;
+  for (const std::string& spec : specs) {
+    axes.push_back(parse_axis(spec));
+    for (const std::string& k : axis_keys(axes.back())) {
+      // The later --set of a key wins: a key on two axes would label
+      // cases by values none of them ran with.
+      if (std::find(keys.begin(), keys.end(), k) != keys.end())
+        throw std::invalid_argument("--vary " + spec + ": '" + k +
+                                    "' is varied twice, expected each key on one axis");
+      keys.push_back(k);
+    }
+  }
+  return axes;
+}
+
+std::vector<Case> make_cases(const std::vector<Axis>& axes) {
+  std::vector<Case> cases(1);
+  for (const Axis& axis : axes) {
+    const std::vector<std::string> keys = axis_keys(axis);
+    std::vector<Case> next;
+    for (const Case& c : cases)
+      for (const std::string& v : axis.values) {
+        next.push_back(c);
+        const std::vector<std::string> parts = split(v, ':');
+        for (std::size_t k = 0; k < keys.size(); ++k)
+          next.back().sets.emplace_back(keys[k], parts[k]);
+      }
+    cases = std::move(next);
+  }
+  for (std::size_t k = 0; k < cases.size(); ++k) cases[k].index = k;
+  return cases;
+}
+
+std::vector<std::string> case_arguments(const Options& o, const Case& c) {
+  // Absolute paths: the command is the case's stamp (already_done), the
+  // same from this study and from a scheduler's --case process, which is
+  // given them absolute.
+  std::vector<std::string> args{full_path(o.scene), "-o", full_path(case_dir(o, c)), "--quiet"};
+  for (const std::string& k : o.base_unsets) args.insert(args.end(), {"--unset", k});
+  for (const Sets* sets : {&o.base_sets, &c.sets})
+    for (const auto& [k, v] : *sets) {
+      args.push_back("--set");
+      args.push_back(k + "=" + v);
+    }
+  if (o.seed) args.insert(args.end(), {"--seed", std::to_string(*o.seed)});
+  for (const std::string& folder : o.include_paths)
+    args.insert(args.end(), {"--include-path", full_path(folder)});
+  return args;
+}
+
+Errors measure(const fs::path& run, const fs::path& reference) {
+  Errors e;
+  const output::Landings a = output::read_landings(run / "crossings.csv");
+  const output::Landings b = output::read_landings(reference / "crossings.csv");
+  for (const auto* side : {&a, &b})
+    for (const auto& [key, samples] : *side) {
+      const auto ia = a.find(key), ib = b.find(key);
+      e.w1_mm[key] = ia == a.end() || ib == b.end()
+                         ? std::numeric_limits<double>::infinity()
+                         : 1e3 * output::wasserstein1(ia->second, ib->second);
+    }
+  for (const auto& [key, w1] : e.w1_mm) e.w1_max_mm = std::max(e.w1_max_mm, w1);
+  const ProductFigures fa = main_material_figures(run / "products.csv"),
+                       fb = main_material_figures(reference / "products.csv");
+  for (const auto& [product, a] : fa) {
+    const auto b = fb.find(product);
+    if (b == fb.end()) continue;
+    e.grade = std::max(e.grade, std::abs(a.first - b->second.first));
+    e.recovery = std::max(e.recovery, std::abs(a.second - b->second.second));
+  }
+  std::ifstream in(run / "summary.json");
+  const auto j = nlohmann::json::parse(in, nullptr, false);
+  e.balance_exact = !j.is_discarded() && j["balance"].value("exact", false);
+  return e;
+}
+
+Scheduler parse_scheduler(const std::string& name) {
+  if (name == "local") return Scheduler::Local;
+  if (name == "parallel") return Scheduler::Parallel;
+  if (name == "slurm") return Scheduler::Slurm;
+  throw std::invalid_argument("--scheduler " + name + ": expected local, parallel or slurm");
 }
 
 std::string list_cases(const Options& o) {

@@ -39,7 +39,6 @@ struct Axis {
 Axis parse_axis(const std::string& spec);
 // The --vary axes, each key on one of them only.
 std::vector<Axis> parse_axes(const std::vector<std::string>& specs);
-std::vector<std::string> axis_keys(const Axis& a);
 
 struct Case {
   std::size_t index = 0;
@@ -76,9 +75,6 @@ struct Options {
 // (bitwise), so a case run elsewhere still counts as the same case.
 std::vector<std::string> case_arguments(const Options& o, const Case& c);
 
-// Index of the finest case, from each case's compiled scene.
-std::size_t finest_case(const Options& o, const std::vector<Case>& cases);
-
 struct Errors {
   std::map<std::string, double> w1_mm;  // per "material at collector"; inf: collected in one only
   double w1_max_mm = 0.0;
@@ -88,33 +84,8 @@ struct Errors {
 // Throws output::IoError when a folder lacks a table.
 Errors measure(const std::filesystem::path& run, const std::filesystem::path& reference);
 
-struct Row {
-  Case c;
-  bool complete = false;
-  double wall_s = 0.0;
-  std::string method;
-  std::string contact_model = "dvi";
-  double residual_p95 = 0.0;
-  long steps_at_cap = 0;
-  double penetration_relative = 0.0;
-  Errors errors;
-};
-
-std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& rows);
-std::string study_svg(const std::vector<Row>& rows);
-std::string study_table(const std::vector<Axis>& axes, const std::vector<Row>& rows);
-// DIR/report.html: the work-precision plot, the table and a link to each
-// case's own report.
-std::string study_report(const std::vector<Case>& cases, const std::filesystem::path& reference,
-                         const std::string& table, const std::string& svg);
-
 // One line per case: "K  --set a=1 --set b=2".
 std::string list_cases(const Options& o);
-// One shell command per case, in case order: this binary's study command
-// with --case K (which runs the case and marks it done).
-std::string case_commands(const Options& o);
-// The Slurm job array that runs case_commands(), one task per case.
-std::string slurm_script(const Options& o);
 // Runs the study (or only its case o.only_case); returns a process exit code:
 // 0 all cases complete, 3 some case failed.
 int run(const Options& o);
