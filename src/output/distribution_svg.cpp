@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "output/format.hpp"
+#include "output/svg.hpp"
 
 namespace ces::output {
 namespace {
@@ -15,20 +16,8 @@ constexpr const char* kColours[] = {"#D55E00", "#0072B2", "#009E73", "#CC79A7",
 constexpr double kWidth = 760, kPanelHeight = 420;
 constexpr double kLeft = 80, kRight = 170, kTop = 50, kBottom = 60;
 
-std::string fixed(double v) { return svg_number(v); }
-std::string escape(const std::string& s) { return xml_escape(s); }
-
-// Round tick spacing (1, 2 or 5 times a power of ten) for about five ticks.
-double tick_step(double range) {
-  const double raw = range / 5.0;
-  const double decade = std::pow(10.0, std::floor(std::log10(raw)));
-  for (const double m : {1.0, 2.0, 5.0})
-    if (m * decade >= raw) return m * decade;
-  return 10.0 * decade;
-}
-
 double nice_ceiling(double v) {
-  const double step = tick_step(v);
+  const double step = svg::tick_step(v);
   return std::ceil(v / step) * step;
 }
 
@@ -42,37 +31,26 @@ struct Frame {
   }
 };
 
-void text(std::string& s, double x, double y, const std::string& body, const char* anchor,
-          const char* extra = "") {
-  s += "<text x=\"" + fixed(x) + "\" y=\"" + fixed(y) + "\" text-anchor=\"" + anchor + "\"" +
-       extra + ">" + escape(body) + "</text>\n";
-}
-
-void line(std::string& s, double x1, double y1, double x2, double y2, const char* style) {
-  s += "<line x1=\"" + fixed(x1) + "\" y1=\"" + fixed(y1) + "\" x2=\"" + fixed(x2) + "\" y2=\"" +
-       fixed(y2) + "\" " + style + "/>\n";
-}
-
 void axes(std::string& s, const Frame& f) {
   const double bottom = f.py(0), top = f.py(f.y1);
-  s += "<rect x=\"" + fixed(kLeft) + "\" y=\"" + fixed(top) + "\" width=\"" +
-       fixed(f.px(f.x1) - kLeft) + "\" height=\"" + fixed(bottom - top) +
+  s += "<rect x=\"" + svg_number(kLeft) + "\" y=\"" + svg_number(top) + "\" width=\"" +
+       svg_number(f.px(f.x1) - kLeft) + "\" height=\"" + svg_number(bottom - top) +
        "\" fill=\"none\" stroke=\"#000\"/>\n";
-  const double dx = tick_step(f.x1 - f.x0);
+  const double dx = svg::tick_step(f.x1 - f.x0);
   for (double x = std::ceil(f.x0 / dx) * dx; x <= f.x1 + 1e-9 * dx; x += dx) {
-    line(s, f.px(x), bottom, f.px(x), bottom + 5, "stroke=\"#000\"");
-    text(s, f.px(x), bottom + 20, format_number(std::abs(x) < 1e-9 * dx ? 0.0 : x), "middle");
+    svg::line(s, f.px(x), bottom, f.px(x), bottom + 5, "stroke=\"#000\"");
+    svg::text(s, f.px(x), bottom + 20, format_number(std::abs(x) < 1e-9 * dx ? 0.0 : x), "middle");
   }
-  const double dy = tick_step(f.y1);
+  const double dy = svg::tick_step(f.y1);
   for (double y = 0; y <= f.y1 + 1e-9 * dy; y += dy) {
-    line(s, kLeft - 5, f.py(y), kLeft, f.py(y), "stroke=\"#000\"");
-    text(s, kLeft - 8, f.py(y) + 5, format_number(y), "end");
+    svg::line(s, kLeft - 5, f.py(y), kLeft, f.py(y), "stroke=\"#000\"");
+    svg::text(s, kLeft - 8, f.py(y) + 5, format_number(y), "end");
   }
-  text(s, (kLeft + f.px(f.x1)) / 2, bottom + 45, "Position along the collector axis (mm)",
-       "middle");
+  svg::text(s, (kLeft + f.px(f.x1)) / 2, bottom + 45, "Position along the collector axis (mm)",
+            "middle");
   const double mid = (top + bottom) / 2;
-  text(s, 25, mid, "Mass (% of the material collected)", "middle",
-       (" transform=\"rotate(-90 25 " + fixed(mid) + ")\"").c_str());
+  svg::text(s, 25, mid, "Mass (% of the material collected)", "middle",
+            " transform=\"rotate(-90 25 " + svg_number(mid) + ")\"");
 }
 
 // Dashed lines at the product boundaries (once where two products meet),
@@ -83,15 +61,15 @@ void product_marks(std::string& s, const Frame& f, const Collector& c) {
     const double a = std::max(p.from * 1e3, f.x0), b = std::min(p.to * 1e3, f.x1);
     if (a >= b) continue;
     edges.insert(edges.end(), {a, b});
-    text(s, (f.px(a) + f.px(b)) / 2, f.py(f.y1) + 16, p.name, "middle",
-         " fill=\"#555\" font-size=\"12\"");
+    svg::text(s, (f.px(a) + f.px(b)) / 2, f.py(f.y1) + 16, p.name, "middle",
+              " fill=\"#555\" font-size=\"12\"");
   }
   std::sort(edges.begin(), edges.end());
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
   for (const double edge : edges)
     if (edge > f.x0 && edge < f.x1)
-      line(s, f.px(edge), f.py(0), f.px(edge), f.py(f.y1),
-           "stroke=\"#888\" stroke-dasharray=\"6 4\"");
+      svg::line(s, f.px(edge), f.py(0), f.px(edge), f.py(f.y1),
+                "stroke=\"#888\" stroke-dasharray=\"6 4\"");
 }
 
 // Mass % per bin of one material, or empty if the collector got none of it.
@@ -107,9 +85,9 @@ std::vector<double> percentages(const CollectorTallies& t, const Collector& c, i
 
 void path_point(std::string& d, char command, double x, double y) {
   d += command;
-  d += fixed(x);
+  d += svg_number(x);
   d += ',';
-  d += fixed(y);
+  d += svg_number(y);
   d += ' ';
 }
 
@@ -138,8 +116,8 @@ void panel(std::string& s, const Simulation& sim, const Collection& c, std::size
   }
   const double y1 = peak > 0 ? nice_ceiling(1.1 * peak) : 100.0;
   const Frame f{col.from * 1e3, col.to * 1e3, y1, double(k) * kPanelHeight};
-  text(s, kWidth / 2, f.top + 28, sim.name + ": landing distribution at " + col.name, "middle",
-       " font-size=\"16\"");
+  svg::text(s, kWidth / 2, f.top + 28, sim.name + ": landing distribution at " + col.name, "middle",
+            " font-size=\"16\"");
   axes(s, f);
   product_marks(s, f, col);
   double legend_y = f.py(f.y1) + 10;
@@ -148,13 +126,14 @@ void panel(std::string& s, const Simulation& sim, const Collection& c, std::size
     if (pct[i].empty()) continue;
     step_line(s, f, pct[i], colour);
     const double x = f.px(f.x1) + 15;
-    line(s, x, legend_y, x + 28, legend_y,
-         ("stroke=\"" + std::string(colour) + "\" stroke-width=\"3\"").c_str());
-    text(s, x + 36, legend_y + 5, sim.model->materials.materials()[std::size_t(materials[i])].name,
-         "start");
+    svg::line(s, x, legend_y, x + 28, legend_y,
+              "stroke=\"" + std::string(colour) + "\" stroke-width=\"3\"");
+    svg::text(s, x + 36, legend_y + 5,
+              sim.model->materials.materials()[std::size_t(materials[i])].name, "start");
     legend_y += 22;
   }
-  if (peak == 0) text(s, (kLeft + f.px(f.x1)) / 2, f.py(y1 / 2), "nothing collected", "middle");
+  if (peak == 0)
+    svg::text(s, (kLeft + f.px(f.x1)) / 2, f.py(y1 / 2), "nothing collected", "middle");
 }
 
 }  // namespace
@@ -165,8 +144,8 @@ std::string distribution_svg(const Simulation& sim, const Collection& c,
   std::string s =
       "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<svg xmlns=\"http://www.w3.org/2000/svg\" "
       "width=\"" +
-      fixed(kWidth) + "\" height=\"" + fixed(height) + "\" viewBox=\"0 0 " + fixed(kWidth) + " " +
-      fixed(height) +
+      svg_number(kWidth) + "\" height=\"" + svg_number(height) + "\" viewBox=\"0 0 " +
+      svg_number(kWidth) + " " + svg_number(height) +
       "\" font-family=\"Helvetica, Arial, sans-serif\" font-size=\"14\">\n"
       "<rect width=\"100%\" height=\"100%\" fill=\"#fff\"/>\n";
   for (std::size_t k = 0; k < sim.collectors.size(); ++k) panel(s, sim, c, k, materials);

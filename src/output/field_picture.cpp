@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "output/format.hpp"
+#include "output/svg.hpp"
 
 namespace ces::output {
 namespace {
@@ -39,9 +40,6 @@ constexpr const char* kElectrodeFill = "#505050";
 // A white outline keeps labels readable over arrows and colour bands.
 constexpr const char* kHalo = " stroke=\"#fff\" stroke-width=\"3\" paint-order=\"stroke\"";
 
-std::string fixed(double v) { return svg_number(v); }
-std::string escape(const std::string& s) { return xml_escape(s); }
-
 // Linear blend of the ramp at t in [0, 1], as "#rrggbb".
 std::string ramp_colour(double t) {
   const double pos = std::clamp(t, 0.0, 1.0) * double(kRamp.size() - 1);
@@ -61,15 +59,6 @@ std::string ramp_colour(double t) {
 
 std::string level_colour(int level) { return ramp_colour((level + 0.5) / kLevels); }
 
-// Round tick spacing (1, 2 or 5 times a power of ten) for about five ticks.
-double tick_step(double range) {
-  const double raw = range / 5.0;
-  const double decade = std::pow(10.0, std::floor(std::log10(raw)));
-  for (const double m : {1.0, 2.0, 5.0})
-    if (m * decade >= raw) return m * decade;
-  return 10.0 * decade;
-}
-
 // The smallest of 1, 2, 2.5, 5 times a power of ten at or above v > 0.
 double nice_ceiling(double v) {
   const double decade = std::pow(10.0, std::floor(std::log10(v)));
@@ -78,35 +67,24 @@ double nice_ceiling(double v) {
   return 10.0 * decade;
 }
 
-void text(std::string& s, double x, double y, const std::string& body, const char* anchor,
-          const std::string& extra = "") {
-  s += "<text x=\"" + fixed(x) + "\" y=\"" + fixed(y) + "\" text-anchor=\"" + anchor + "\"" +
-       extra + ">" + escape(body) + "</text>\n";
-}
-
-void line(std::string& s, double x1, double y1, double x2, double y2, const std::string& style) {
-  s += "<line x1=\"" + fixed(x1) + "\" y1=\"" + fixed(y1) + "\" x2=\"" + fixed(x2) + "\" y2=\"" +
-       fixed(y2) + "\" " + style + "/>\n";
-}
-
 // A rectangle as a closed subpath: "Mx,yh<w>v<h>h<-w>z".
 void append_rect(std::string& d, const Vec2& corner, double w, double h) {
   d += 'M';
-  d += fixed(corner.x());
+  d += svg_number(corner.x());
   d += ',';
-  d += fixed(corner.y());
+  d += svg_number(corner.y());
   d += 'h';
-  d += fixed(w);
+  d += svg_number(w);
   d += 'v';
-  d += fixed(h);
+  d += svg_number(h);
   d += 'h';
-  d += fixed(-w);
+  d += svg_number(-w);
   d += 'z';
 }
 
 void circle(std::string& s, const Vec2& c, double r, const char* fill) {
-  s += "<circle cx=\"" + fixed(c.x()) + "\" cy=\"" + fixed(c.y()) + "\" r=\"" + fixed(r) +
-       "\" fill=\"" + fill + "\" stroke=\"#000\" stroke-width=\"1.5\"/>\n";
+  s += "<circle cx=\"" + svg_number(c.x()) + "\" cy=\"" + svg_number(c.y()) + "\" r=\"" +
+       svg_number(r) + "\" fill=\"" + fill + "\" stroke=\"#000\" stroke-width=\"1.5\"/>\n";
 }
 
 // ------------------------------------------------------------ the picture
@@ -185,16 +163,18 @@ class FieldSvg {
     std::string s =
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<svg xmlns=\"http://www.w3.org/2000/svg\" "
         "width=\"" +
-        fixed(w) + "\" height=\"" + fixed(h) + "\" viewBox=\"0 0 " + fixed(w) + " " + fixed(h) +
+        svg_number(w) + "\" height=\"" + svg_number(h) + "\" viewBox=\"0 0 " + svg_number(w) + " " +
+        svg_number(h) +
         "\" font-family=\"Helvetica, Arial, sans-serif\" font-size=\"13\">\n"
         "<defs><marker id=\"head\" viewBox=\"0 0 10 10\" refX=\"8\" refY=\"5\" markerWidth=\"4\" "
         "markerHeight=\"4\" orient=\"auto\"><path d=\"M0,0 L10,5 L0,10 z\" fill=\"#1a1a1a\"/>"
         "</marker><clipPath id=\"plot\"><rect x=\"" +
-        fixed(kLeft) + "\" y=\"" + fixed(kTop) + "\" width=\"" + fixed(width_) + "\" height=\"" +
-        fixed(height_) +
+        svg_number(kLeft) + "\" y=\"" + svg_number(kTop) + "\" width=\"" + svg_number(width_) +
+        "\" height=\"" + svg_number(height_) +
         "\"/></clipPath></defs>\n<rect width=\"100%\" height=\"100%\" fill=\"#fff\"/>\n";
-    text(s, kLeft + width_ / 2, 24, sim_.name + ": electric field at z = 0 (" + model_name() + ")",
-         "middle", " font-size=\"16\"");
+    svg::text(s, kLeft + width_ / 2, 24,
+              sim_.name + ": electric field at z = 0 (" + model_name() + ")", "middle",
+              " font-size=\"16\"");
     return s;
   }
 
@@ -231,13 +211,14 @@ class FieldSvg {
   void conductors(std::string& s) const {
     const double r = sim_.electrostatics->drum.radius;
     circle(s, to_px(Vec2::Zero()), r * scale_, kDrumFill);
-    text(s, px(0), py(0) + 5, "drum, 0 V", "middle");
+    svg::text(s, px(0), py(0) + 5, "drum, 0 V", "middle");
     for (const NamedElectrode& e : sim_.electrodes) {
       const Vec2 c = to_px(e.electrode.centre);
       const double rp = std::max(2.0, e.electrode.radius * scale_);  // a wire stays visible
       circle(s, c, rp, kElectrodeFill);
-      text(s, c.x(), c.y() + rp + 15,
-           e.name + ", " + format_number(e.electrode.potential / 1e3) + " kV", "middle", kHalo);
+      svg::text(s, c.x(), c.y() + rp + 15,
+                e.name + ", " + format_number(e.electrode.potential / 1e3) + " kV", "middle",
+                kHalo);
     }
   }
 
@@ -251,49 +232,52 @@ class FieldSvg {
         if (level_[index(i, j)] < 0 || e.norm() / kVperCm < 0.02 * top_) continue;
         const Vec2 c = to_px(g_.node(i, j));
         const Vec2 d = Vec2(e.x(), -e.y()).normalized() * half;  // SVG y points down
-        line(s, c.x() - d.x(), c.y() - d.y(), c.x() + d.x(), c.y() + d.y(),
-             "stroke=\"#1a1a1a\" stroke-width=\"1.2\" marker-end=\"url(#head)\"");
+        svg::line(s, c.x() - d.x(), c.y() - d.y(), c.x() + d.x(), c.y() + d.y(),
+                  "stroke=\"#1a1a1a\" stroke-width=\"1.2\" marker-end=\"url(#head)\"");
       }
     }
   }
 
   void axes(std::string& s) const {
     const double left = px(lo_.x()), right = px(hi_.x()), top = py(hi_.y()), bottom = py(lo_.y());
-    s += "<rect x=\"" + fixed(left) + "\" y=\"" + fixed(top) + "\" width=\"" + fixed(width_) +
-         "\" height=\"" + fixed(height_) + "\" fill=\"none\" stroke=\"#000\"/>\n";
-    const double dx = tick_step(hi_.x() - lo_.x());
+    s += "<rect x=\"" + svg_number(left) + "\" y=\"" + svg_number(top) + "\" width=\"" +
+         svg_number(width_) + "\" height=\"" + svg_number(height_) +
+         "\" fill=\"none\" stroke=\"#000\"/>\n";
+    const double dx = svg::tick_step(hi_.x() - lo_.x());
     for (double x = std::ceil(lo_.x() / dx) * dx; x <= hi_.x(); x += dx) {
-      line(s, px(x), bottom, px(x), bottom + 5, "stroke=\"#000\"");
-      text(s, px(x), bottom + 19, format_number(std::abs(x) < 1e-9 * dx ? 0.0 : x), "middle");
+      svg::line(s, px(x), bottom, px(x), bottom + 5, "stroke=\"#000\"");
+      svg::text(s, px(x), bottom + 19, format_number(std::abs(x) < 1e-9 * dx ? 0.0 : x), "middle");
     }
-    const double dy = tick_step(hi_.y() - lo_.y());
+    const double dy = svg::tick_step(hi_.y() - lo_.y());
     for (double y = std::ceil(lo_.y() / dy) * dy; y <= hi_.y(); y += dy) {
-      line(s, left - 5, py(y), left, py(y), "stroke=\"#000\"");
-      text(s, left - 8, py(y) + 4, format_number(std::abs(y) < 1e-9 * dy ? 0.0 : y), "end");
+      svg::line(s, left - 5, py(y), left, py(y), "stroke=\"#000\"");
+      svg::text(s, left - 8, py(y) + 4, format_number(std::abs(y) < 1e-9 * dy ? 0.0 : y), "end");
     }
-    text(s, (left + right) / 2, bottom + 42, "x (m)", "middle");
+    svg::text(s, (left + right) / 2, bottom + 42, "x (m)", "middle");
     const double mid = (top + bottom) / 2;
-    text(s, 22, mid, "y (m)", "middle", " transform=\"rotate(-90 22 " + fixed(mid) + ")\"");
+    svg::text(s, 22, mid, "y (m)", "middle",
+              " transform=\"rotate(-90 22 " + svg_number(mid) + ")\"");
   }
 
   void colour_bar(std::string& s) const {
     const double x = kLeft + width_ + 40, w = 18, top = kTop, h = height_;
     for (int k = 0; k < kLevels; ++k) {
       const double y = top + h * (1.0 - double(k + 1) / kLevels);
-      s += "<rect x=\"" + fixed(x) + "\" y=\"" + fixed(y) + "\" width=\"" + fixed(w) +
-           "\" height=\"" + fixed(h / kLevels + 0.5) + "\" fill=\"" + level_colour(k) + "\"/>\n";
+      s += "<rect x=\"" + svg_number(x) + "\" y=\"" + svg_number(y) + "\" width=\"" +
+           svg_number(w) + "\" height=\"" + svg_number(h / kLevels + 0.5) + "\" fill=\"" +
+           level_colour(k) + "\"/>\n";
     }
-    s += "<rect x=\"" + fixed(x) + "\" y=\"" + fixed(top) + "\" width=\"" + fixed(w) +
-         "\" height=\"" + fixed(h) + "\" fill=\"none\" stroke=\"#000\"/>\n";
-    const double step = tick_step(top_);
+    s += "<rect x=\"" + svg_number(x) + "\" y=\"" + svg_number(top) + "\" width=\"" +
+         svg_number(w) + "\" height=\"" + svg_number(h) + "\" fill=\"none\" stroke=\"#000\"/>\n";
+    const double step = svg::tick_step(top_);
     for (double v = 0.0; v <= top_ * (1.0 + 1e-9); v += step) {
       const double y = top + h * (1.0 - v / top_);
-      line(s, x + w, y, x + w + 5, y, "stroke=\"#000\"");
-      text(s, x + w + 8, y + 4, format_number(v), "start");
+      svg::line(s, x + w, y, x + w + 5, y, "stroke=\"#000\"");
+      svg::text(s, x + w + 8, y + 4, format_number(v), "start");
     }
-    text(s, x + w / 2, top - 14, "|E| (kV/cm)", "middle");
-    text(s, x - 4, top + h + 20, "above " + format_number(top_) + ": top colour", "start",
-         " font-size=\"11\"");
+    svg::text(s, x + w / 2, top - 14, "|E| (kV/cm)", "middle");
+    svg::text(s, x - 4, top + h + 20, "above " + format_number(top_) + ": top colour", "start",
+              " font-size=\"11\"");
   }
 
   const Simulation& sim_;
