@@ -14,9 +14,9 @@
 //   0  success; compare: the folders agree
 //   1  compare: the folders differ
 //   2  bad input: scene diagnostics (one per line on stderr), bad arguments,
-//      a folder to compare that lacks its tables
+//      a folder to compare that lacks its tables or holds others
 //   3  the run failed or was interrupted; outputs so far are kept and
-//      summary.json says complete: false and why
+//      summary.json says complete: false and why; or out of memory
 //   4  internal error
 #include <unistd.h>
 
