@@ -22,8 +22,8 @@
 
 #include <CLI/CLI.hpp>
 #include <charconv>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -31,6 +31,7 @@
 #include <new>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dynamics/isa.hpp"
@@ -203,11 +204,11 @@ int run_scene(const Args& args) {
 // The run's own scene, rebuilt from the checkpoint; --threads may differ
 // (the bits do not depend on it).
 int resume(const Args& args) {
-  const ces::Checkpoint c = ces::find_checkpoint(args.dir_a);
+  ces::Checkpoint c = ces::find_checkpoint(args.dir_a);
   ces::scene::LoadOptions o;
   o.threads = args.threads;
   const ces::Simulation sim = ces::scene::load_text(c.resolved_yaml, c.scene_path, o);
-  return ended(ces::resume(sim, c, args.dir_a, run_options(args)));
+  return ended(ces::resume(sim, std::move(c), args.dir_a, run_options(args)));
 }
 
 int validate(const Args& args) {

@@ -15,6 +15,8 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <optional>
+#include <utility>
 
 #include "common/clock.hpp"
 #include "output/distribution_svg.hpp"
@@ -185,12 +187,13 @@ constexpr const char* kNoEnd =
 
 class Runner {
  public:
-  // resume: the body of a checkpoint of this scene, or null for a new run.
-  Runner(const Simulation& sim, const RunOptions& options, const std::string* resume);
+  // resume: the body of a checkpoint of this scene, or none for a new run.
+  Runner(const Simulation& sim, const RunOptions& options, std::optional<std::string> resume);
   RunResult run();
 
  private:
   void start();
+  void read_checkpoint_body();
   void write_field_picture();
   void step_to_end();
   bool caller_stops(bool last);
@@ -207,7 +210,7 @@ class Runner {
 
   const Simulation& sim_;
   RunOptions options_;
-  const std::string* resume_;
+  std::optional<std::string> resume_;
   Clock::time_point start_ = Clock::now();
   OutputFolder folder_;
   fs::path dir_;  // the folder written while the run goes: folder_.work()
@@ -234,18 +237,18 @@ ThreadGovernor governor(const Simulation& sim, const RunOptions& options) {
   return ThreadGovernor(fixed > 0 ? fixed : omp_get_max_threads(), fixed == 0);
 }
 
-output::Start start_of(const std::string* resume) {
+output::Start start_of(const std::optional<std::string>& resume) {
   return resume ? output::Start::Resume : output::Start::Fresh;
 }
 
-Runner::Runner(const Simulation& sim, const RunOptions& options, const std::string* resume)
+Runner::Runner(const Simulation& sim, const RunOptions& options, std::optional<std::string> resume)
     : sim_(sim),
       options_(options),
-      resume_(resume),
-      folder_(output_dir(sim, options), start_of(resume)),
+      resume_(std::move(resume)),
+      folder_(output_dir(sim, options), start_of(resume_)),
       dir_(folder_.work()),
       world_(sim),
-      observers_(sim, dir_, world_, start_of(resume)),
+      observers_(sim, dir_, world_, start_of(resume_)),
       threads_(governor(sim, options)),
       checkpoint_steps_(sim.output.checkpoint_every > 0.0
                             ? std::uint64_t(std::max(
@@ -263,16 +266,21 @@ void Runner::write_field_picture() {
   output_seconds_ += seconds_since(t0);
 }
 
+void Runner::read_checkpoint_body() {
+  ByteReader in(*resume_);
+  world_.load(in);
+  observers_.load(in);
+  in.value(wall_before_);
+  in.value(output_seconds_);
+  if (!in.at_end()) throw CorruptData("the checkpoint holds more than this scene's run");
+}
+
 // A new run writes what it knows before its first step; a resumed one
 // reads its checkpoint back.
 void Runner::start() {
   if (resume_) {
-    ByteReader in(*resume_);
-    world_.load(in);
-    observers_.load(in);
-    in.value(wall_before_);
-    in.value(output_seconds_);
-    if (!in.at_end()) throw CorruptData("the checkpoint holds more than this scene's run");
+    read_checkpoint_body();
+    resume_.reset();  // the world holds the state now; the bytes would stay for the whole run
     return;
   }
   if (!sim_.resolved_yaml.empty())
@@ -514,19 +522,19 @@ void Runner::tally_active(output::RunRecord& r) const {
 }  // namespace
 
 RunResult run(const Simulation& sim, const RunOptions& options) {
-  Runner runner(sim, options, nullptr);
+  Runner runner(sim, options, std::nullopt);
   return runner.run();
 }
 
 Checkpoint find_checkpoint(const std::string& dir) { return read_checkpoint(checkpoint_file(dir)); }
 
-RunResult resume(const Simulation& sim, const Checkpoint& checkpoint, const std::string& dir,
+RunResult resume(const Simulation& sim, Checkpoint checkpoint, const std::string& dir,
                  RunOptions options) {
   if (sim.scene_hash != checkpoint.scene_hash)
     throw CorruptData("the scene rebuilt from the checkpoint in " + dir +
                       " differs from the one that wrote it");
   options.out_dir = dir;
-  Runner runner(sim, options, &checkpoint.body);
+  Runner runner(sim, options, std::move(checkpoint.body));
   return runner.run();
 }
 

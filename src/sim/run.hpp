@@ -57,7 +57,8 @@ Checkpoint find_checkpoint(const std::string& dir);
 // Continues that run: sim is its scene, rebuilt by the caller from the
 // checkpoint's scene_path and resolved_yaml (scene::load_text). The
 // results are the bytes the run would have written had it not stopped.
-RunResult resume(const Simulation& sim, const Checkpoint& checkpoint, const std::string& dir,
+// The checkpoint is taken over: its state is freed once the run holds it.
+RunResult resume(const Simulation& sim, Checkpoint checkpoint, const std::string& dir,
                  RunOptions options);
 
 }  // namespace ces
