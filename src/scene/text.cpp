@@ -83,4 +83,9 @@ std::string one_line(std::string_view text) {
   return out;
 }
 
+std::size_t skip_digits(std::string_view s, std::size_t i) {
+  while (i < s.size() && s[i] >= '0' && s[i] <= '9') ++i;
+  return i;
+}
+
 }  // namespace ces::scene

@@ -22,6 +22,9 @@ std::optional<std::size_t> control_character(std::string_view text);
 // with "..." appended when anything was left out.
 std::string excerpt(std::string_view text, std::size_t max = 40);
 
+// The end of the run of ASCII digits that starts at s[i] (i itself if none).
+std::size_t skip_digits(std::string_view s, std::size_t i);
+
 // `text` with control characters written as escapes (\n, \t, \x01): a
 // diagnostic stays on one line whatever a key or a name holds.
 std::string one_line(std::string_view text);

@@ -18,13 +18,6 @@
 namespace ces::scene {
 namespace {
 
-bool is_digit(char c) { return c >= '0' && c <= '9'; }
-
-std::size_t skip_digits(std::string_view s, std::size_t i) {
-  while (i < s.size() && is_digit(s[i])) ++i;
-  return i;
-}
-
 std::size_t skip_sign(std::string_view s, std::size_t i) {
   return i < s.size() && (s[i] == '-' || s[i] == '+') ? i + 1 : i;
 }

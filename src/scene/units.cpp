@@ -8,6 +8,8 @@
 #include <optional>
 #include <vector>
 
+#include "scene/text.hpp"
+
 namespace ces::scene::units {
 namespace {
 
@@ -123,13 +125,6 @@ std::optional<Symbol> find_symbol(std::string_view name) {
       }
   }
   return std::nullopt;
-}
-
-bool is_digit(char c) { return c >= '0' && c <= '9'; }
-
-std::size_t skip_digits(std::string_view s, std::size_t i) {
-  while (i < s.size() && is_digit(s[i])) ++i;
-  return i;
 }
 
 // Decimal exponents beyond this cannot make a finite, non-zero double
