@@ -19,6 +19,14 @@ double DrawnShape::volume(double t, double extent) const {
   return 0.25 * kPi * t * t * (length - t) + kPi * t * t * t / 6.0;
 }
 
+double DrawnShape::largest_bounding_radius(const std::vector<ParticleShape>& shapes) const {
+  const double largest = extent.quantile_by_number(1.0);
+  double radius = 0.0;
+  for (const Rung& r : ladder)
+    radius = std::max(radius, largest / r.extent * shapes.at(std::size_t(r.shape)).bounding_radius);
+  return radius;
+}
+
 // A disc (diameter w, thickness t): w²/8 about its normal, w²/16 + t²/12
 // across. A rod as a cylinder (diameter t, length L): t²/8 about its axis,
 // t²/16 + L²/12 across. The flake shape's normal is its principal axis of

@@ -8,7 +8,7 @@
 #include "common/math.hpp"
 #include "feed/size_distribution.hpp"
 #include "geometry/shapes.hpp"
-#include "model/defaults.hpp"
+#include "model/model.hpp"
 
 namespace ces {
 
@@ -38,6 +38,9 @@ struct DrawnShape {
   // Principal inertia per unit mass of the drawn solid in the rung shape's
   // principal frame (its axes ordered as the shape's).
   Vec3 unit_inertia(double thickness, double extent, const Vec3& shape_unit_inertia) const;
+  // The bounding radius of the largest particle it can make, over the rungs
+  // (`shapes`: Model::shapes).
+  double largest_bounding_radius(const std::vector<ParticleShape>& shapes) const;
 };
 
 // One component of a feed's mix.

@@ -62,11 +62,8 @@ Feeder::Feeder(const Feed& feed, std::uint64_t scene_seed, const Model& model)
   stats_.fed.resize(feed_.mix.size());
   for (const FeedComponent& c : feed_.mix) {
     if (c.drawn) {
-      const double largest = c.drawn->extent.quantile_by_number(1.0);
-      for (const DrawnShape::Rung& r : c.drawn->ladder)
-        max_bounding_radius_ =
-            std::max(max_bounding_radius_,
-                     largest / r.extent * model.shapes.at(std::size_t(r.shape)).bounding_radius);
+      max_bounding_radius_ =
+          std::max(max_bounding_radius_, c.drawn->largest_bounding_radius(model.shapes));
       continue;
     }
     const double largest = c.size.quantile_by_number(1.0) / c.shape_size;

@@ -31,6 +31,10 @@ struct Aabb {
   void grow(const Aabb& b);
   Aabb inflated(double margin) const;
   bool overlaps(const Aabb& o) const;
+  // Corner k of 8: bit 0 picks max.x over min.x, bit 1 y, bit 2 z.
+  Vec3 corner(int k) const {
+    return {(k & 1) ? max.x() : min.x(), (k & 2) ? max.y() : min.y(), (k & 4) ? max.z() : min.z()};
+  }
 };
 
 // Solid half-space {x : normal . x <= offset}; its surface is the plane.

@@ -296,6 +296,13 @@ ParticleShape make_particle_shape(const std::vector<Vec3>& centers, const std::v
   return s;
 }
 
+geo::Aabb world_bounds(const RigidBody& b) {
+  const geo::Aabb local = geo::local_bounds(b.shape);
+  geo::Aabb box = geo::Aabb::empty();
+  for (int k = 0; k < 8; ++k) box.grow(b.pose.apply(local.corner(k)));
+  return box;
+}
+
 double particle_mass(const Model& model, int shape, double scale, int material) {
   const ParticleShape& s = model.shapes.at(std::size_t(shape));
   const double density = model.materials.materials().at(std::size_t(material)).density;

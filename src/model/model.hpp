@@ -127,6 +127,7 @@ struct PrescribedMotion {
   Vec3 center = Vec3::Zero();
   double angular_speed = 0.0;
   Vec3 linear_velocity = Vec3::Zero();
+  bool moves() const { return angular_speed != 0.0 || linear_velocity != Vec3::Zero(); }
 };
 
 // A machine part: drum, brush, wall, hopper, splitter. Its shape is in the
@@ -144,6 +145,8 @@ struct RigidBody {
   Vec3 velocity = Vec3::Zero();     // dynamic: initial
   Vec3 angular_velocity = Vec3::Zero();
 };
+// The world box around a bounded body's shape at t = 0.
+geo::Aabb world_bounds(const RigidBody& b);
 
 enum class JointType { Revolute, Prismatic, Fixed };
 

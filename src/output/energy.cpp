@@ -39,8 +39,7 @@ std::string why_not_passive(const Simulation& sim) {
   if (sim.electrostatics) return "electric forces do work";
   if (!sim.model->motors.empty()) return "motors do work";
   for (const RigidBody& b : sim.model->bodies) {
-    const PrescribedMotion& m = b.motion;
-    if (b.kind == BodyKind::Kinematic && (m.angular_speed != 0.0 || !m.linear_velocity.isZero()))
+    if (b.kind == BodyKind::Kinematic && b.motion.moves())
       return "kinematic body '" + b.name + "' moves: the work of its contacts is not tracked";
   }
   return "";

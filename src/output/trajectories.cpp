@@ -21,9 +21,7 @@ std::string frame_name(std::size_t frame, const char* suffix = "") {
 constexpr const char* kStaticMachine = "machine_static.vtp";
 
 bool moves(const RigidBody& b) {
-  if (b.kind == BodyKind::Dynamic) return true;
-  return b.kind == BodyKind::Kinematic &&
-         (b.motion.angular_speed != 0.0 || b.motion.linear_velocity != Vec3::Zero());
+  return b.kind == BodyKind::Dynamic || (b.kind == BodyKind::Kinematic && b.motion.moves());
 }
 
 // Planes are drawn across the domain, or else across the other bodies.
@@ -32,14 +30,8 @@ PlaneExtent plane_extent(const Simulation& sim) {
   if (sim.domain) {
     box = *sim.domain;
   } else {
-    for (const RigidBody& b : sim.model->bodies) {
-      if (std::holds_alternative<geo::Plane>(b.shape)) continue;
-      const geo::Aabb local = geo::local_bounds(b.shape);
-      for (int k = 0; k < 8; ++k)
-        box.grow(b.pose.apply(Vec3(k & 1 ? local.max.x() : local.min.x(),
-                                   k & 2 ? local.max.y() : local.min.y(),
-                                   k & 4 ? local.max.z() : local.min.z())));
-    }
+    for (const RigidBody& b : sim.model->bodies)
+      if (!std::holds_alternative<geo::Plane>(b.shape)) box.grow(world_bounds(b));
   }
   if (!(box.min.array() <= box.max.array()).all()) return {};
   return {0.5 * (box.min + box.max), std::max(0.5 * (box.max - box.min).norm(), 1e-3)};

@@ -426,22 +426,6 @@ bool Compiler::fixed_in_space(const RigidBody& b) {
   return c && axis.cross(b.motion.axis).norm() < 1e-9 && axis.cross(offset).norm() < 1e-9;
 }
 
-// The world box around a bounded body at t = 0.
-geo::Aabb Compiler::world_bounds(const RigidBody& b) {
-  const geo::Aabb local = geo::local_bounds(b.shape);
-  geo::Aabb box = geo::Aabb::empty();
-  for (int k = 0; k < 8; ++k)
-    box.grow(b.pose.apply(Vec3((k & 1) ? local.max.x() : local.min.x(),
-                               (k & 2) ? local.max.y() : local.min.y(),
-                               (k & 4) ? local.max.z() : local.min.z())));
-  return box;
-}
-
-Vec3 Compiler::corner(const geo::Aabb& box, int k) {
-  return {(k & 1) ? box.max.x() : box.min.x(), (k & 2) ? box.max.y() : box.min.y(),
-          (k & 4) ? box.max.z() : box.min.z()};
-}
-
 // A body that stays outside the domain meets no particle: a splitter or a
 // wall placed there is a mistake. So is a plane whose solid holds the
 // whole domain.
@@ -455,7 +439,7 @@ void Compiler::check_bodies_in_domain() {
     if (const auto* plane = std::get_if<geo::Plane>(&b.shape)) {
       int inside = 0;
       for (int k = 0; k < 8; ++k) {
-        const Vec3 local = b.pose.inverse_apply(corner(*sim_.domain, k));
+        const Vec3 local = b.pose.inverse_apply(sim_.domain->corner(k));
         inside += plane->normal.dot(local) < plane->offset ? 1 : 0;
       }
       if (inside == 8)

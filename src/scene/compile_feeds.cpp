@@ -92,7 +92,7 @@ std::vector<double> Compiler::read_mix(const Node& mix, Feed& feed) {
       auto drawn = shapes_.drawn_shape(c);
       if (!material || !drawn) continue;
       component.material = *material;
-      across.push_back(shapes_.drawn_across(*drawn));
+      across.push_back(2.0 * drawn->largest_bounding_radius(model_->shapes));
       component.drawn = std::move(*drawn);
       const Node& extent = c.find("width") ? c.at("width") : c.at("length");
       const std::array<double, 2> volume = {
@@ -189,7 +189,7 @@ void Compiler::check_free(const Node& region, const geo::Aabb& box) {
     bool inside = true;
     for (int k = 0; k < 8 && inside; ++k) {
       hits_.clear();
-      geo::query(b.shape, b.pose.inverse_apply(corner(box, k)), 0.0, hits_);
+      geo::query(b.shape, b.pose.inverse_apply(box.corner(k)), 0.0, hits_);
       inside = std::any_of(hits_.begin(), hits_.end(),
                            [](const geo::SurfaceHit& h) { return h.distance < 0.0; });
     }

@@ -83,7 +83,7 @@ void Compiler::check_reachable(const Node& plane, const Node& bins, const Collec
   if (!sim_.domain) return;
   double lo = kInf, hi = -kInf;
   for (int k = 0; k < 8; ++k) {
-    const double side = c.normal.dot(corner(*sim_.domain, k) - c.point);
+    const double side = c.normal.dot(sim_.domain->corner(k) - c.point);
     lo = std::min(lo, side);
     hi = std::max(hi, side);
   }
@@ -100,7 +100,7 @@ void Compiler::check_reachable(const Node& plane, const Node& bins, const Collec
 void Compiler::check_bins_in_domain(const Node& bins, const Collector& c) {
   double lo = kInf, hi = -kInf;
   for (int k = 0; k < 8; ++k) {
-    const double along = c.axis.dot(corner(*sim_.domain, k) - c.point);
+    const double along = c.axis.dot(sim_.domain->corner(k) - c.point);
     lo = std::min(lo, along);
     hi = std::max(hi, along);
   }

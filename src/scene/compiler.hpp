@@ -95,8 +95,6 @@ class Compiler {
   void read_domain();
   std::optional<geo::Aabb> aabb(const Node& box);
   static bool fixed_in_space(const RigidBody& b);
-  static geo::Aabb world_bounds(const RigidBody& b);
-  static Vec3 corner(const geo::Aabb& box, int k);
   void check_bodies_in_domain();
   bool inside_domain(const geo::Aabb& b) const;
 

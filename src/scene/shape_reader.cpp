@@ -119,16 +119,6 @@ DrawnShape::Rung ShapeReader::rung(const std::string& name, double aspect) {
   return {index, aspect, extent};
 }
 
-// The bounding diameter of the largest particle a drawn shape can make.
-double ShapeReader::drawn_across(const DrawnShape& d) const {
-  const double largest = d.extent.quantile_by_number(1.0);
-  double across = 0.0;
-  for (const DrawnShape::Rung& r : d.ladder)
-    across = std::max(across, 2.0 * largest / r.extent *
-                                  model_->shapes[std::size_t(r.shape)].bounding_radius);
-  return across;
-}
-
 // The component's shape, compiled on first use: a shapes entry (which
 // wins over a built-in of the same name), or the built-in sphere, flake
 // or rod.

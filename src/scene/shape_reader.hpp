@@ -29,8 +29,6 @@ class ShapeReader {
   // A flake or rod whose dimensions are drawn: its laws and the ladder of
   // contact shapes the drawn aspects reach; nullopt: reported.
   std::optional<DrawnShape> drawn_shape(const Node& c);
-  // The bounding diameter of the largest particle a drawn shape can make.
-  double drawn_across(const DrawnShape& d) const;
   std::optional<feed::SizeDistribution> size_distribution(const Node& size, feed::Basis basis);
   // The size of shape `index` at scale 1 (m), the one size laws draw.
   double size(int index) const { return sizes_[std::size_t(index)]; }
