@@ -63,6 +63,18 @@ Collection::Collection(std::vector<Collector> collectors, std::optional<geo::Aab
   for (std::vector<Tally>& l : lost_) l.resize(materials_);
 }
 
+Tally Collection::collected(std::size_t m) const {
+  Tally sum;
+  for (const CollectorTallies& t : tallies_) sum += t.total[m];
+  return sum;
+}
+
+Tally Collection::lost(std::size_t m) const {
+  Tally sum;
+  for (const std::vector<Tally>& reason : lost_) sum += reason[m];
+  return sum;
+}
+
 double Collection::diameter(const Particles& p, std::size_t i) const {
   return p.scale[i] * shape_size_[std::size_t(p.shape[i])];
 }

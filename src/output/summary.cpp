@@ -36,10 +36,10 @@ struct Fates {
 Fates fates(const RunRecord& r) {
   const std::size_t n = r.fed.size();
   Fates f{std::vector<Tally>(n), std::vector<Tally>(n)};
-  for (const CollectorTallies& t : r.collection->collectors())
-    for (std::size_t m = 0; m < n; ++m) f.collected[m] += t.total[m];
-  for (const LossReason reason : kLossReasons)
-    for (std::size_t m = 0; m < n; ++m) f.lost[m] += r.collection->lost(reason)[m];
+  for (std::size_t m = 0; m < n; ++m) {
+    f.collected[m] = r.collection->collected(m);
+    f.lost[m] = r.collection->lost(m);
+  }
   return f;
 }
 

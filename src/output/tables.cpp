@@ -13,10 +13,7 @@ const std::string& material_name(const Simulation& sim, int m) {
 
 // Mass of material m whose fate is known: collected anywhere, or lost.
 MassUnits settled_mass(const Collection& c, int m) {
-  MassUnits sum = 0;
-  for (const CollectorTallies& t : c.collectors()) sum += t.total[std::size_t(m)].mass;
-  for (const LossReason r : kLossReasons) sum += c.lost(r)[std::size_t(m)].mass;
-  return sum;
+  return c.collected(std::size_t(m)).mass + c.lost(std::size_t(m)).mass;
 }
 
 ProductResult product_result(const Collection& c, int collector, int product,
