@@ -85,18 +85,38 @@ void CcpProblem::assemble(const Contacts& c, const MaterialTable& materials,
   bodies_ = &B;
   contacts_ = &c;
   rows_ = rows;
+  step_ = h;
+  size_for(c.size(), B.inv_mass.size());
+  pack_inverse_masses(B);
+  double diag_max = 0.0;
   const std::size_t nc = c.size();
+#pragma omp parallel for schedule(static) \
+    reduction(max                         \
+              : diag_max) if (std::ptrdiff_t(nc) > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(nc); ++s)
+    diag_max = std::max(diag_max, assemble_contact(std::size_t(s), c, materials, h, settings));
+  mark_soft_blocks();
+  diag_max_ = std::max(diag_max, assemble_rows());
+  if (!(diag_max_ > 0.0)) diag_max_ = 1.0;
+  row_metric_.resize(rows_.size());
+  for (std::size_t j = 0; j < rows_.size(); ++j)
+    row_metric_[j] = 1.0 / (row_diag_[j] > 0.0 ? row_diag_[j] : diag_max_);
+  adj_.build(a_, b_, B.inv_mass.size(),
+             [&](std::int32_t i) { return B.inv_mass[std::size_t(i)] > 0.0; });
+}
+
+// Every array at its size for nc contacts and `bodies` solver bodies. The
+// kernel's arrays are padded to whole blocks of kLanes contacts with zeros;
+// assemble_contact writes each contact's own numbers, so only the padding
+// is zeroed here.
+void CcpProblem::size_for(std::size_t nc, std::size_t bodies) {
   a_.resize(nc);
   b_.resize(nc);
-  // Padded to whole blocks of the kernel (apgd_step) with zeros. Every
-  // contact's own numbers are written below, in parallel: only the
-  // padding is zeroed here.
   const std::size_t padded = (nc + kLanes - 1) / kLanes * kLanes;
   frame_.resize(padded / kLanes * kFrameBlock);
   lever_.resize(6 * padded + 1);
   bias_.resize(padded);
   softness_.resize(padded);
-  step_ = h;
   metric_.resize(padded / kLanes * kMetricBlock);
   for (std::size_t k = nc; k < padded; ++k) {
     const std::size_t lane = k % kLanes;
@@ -110,7 +130,13 @@ void CcpProblem::assemble(const Contacts& c, const MaterialTable& materials,
   // World rows for scatter_bodies, and a spare: it loads each contact's
   // impulse as a four-number vector.
   impulse_.resize(3 * nc + rows_.size() + 1);
-  inverse_mass_.resize(kMassStride * B.inv_mass.size());
+  inverse_mass_.resize(kMassStride * bodies);
+  // The gather loads a body's velocity as a four-number vector: a spare.
+  dv_.resize(bodies + 1);
+  dw_.resize(bodies + 1);
+}
+
+void CcpProblem::pack_inverse_masses(const SolverBodies& B) {
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(B.inv_mass.size()) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(B.inv_mass.size()); ++s) {
     const auto i = std::size_t(s);
@@ -121,56 +147,56 @@ void CcpProblem::assemble(const Contacts& c, const MaterialTable& materials,
                             I.cwiseAbs().rowwise().sum().maxCoeff()};
     for (std::size_t c = 0; c < kMassStride; ++c) m[c] = StoredScalar(upper[c]);
   }
-  double diag_max = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : diag_max) if (std::ptrdiff_t(nc) > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(nc); ++s) {
-    const auto k = std::size_t(s);
-    a_[k] = c.body_a[k];
-    b_[k] = c.body_b[k];
-    const Vec3& n = c.normal[k];
-    const SurfacePair& surfaces = materials.surfaces(c.surfaces[k]);
-    const Vec3 ra = c.point[k] - B.x[std::size_t(a_[k])];
-    const Vec3 rb = c.point[k] - B.x[std::size_t(b_[k])];
-    StoredScalar* f = &frame_[k / kLanes * kFrameBlock + k % kLanes];
-    for (int c = 0; c < 3; ++c) f[std::size_t(c) * kLanes] = StoredScalar(n[c]);
-    f[3 * kLanes] = StoredScalar(surfaces.friction);
-    make_tangents(k);
-    for (int c = 0; c < 3; ++c) {
-      lever_[6 * k + std::size_t(c)] = StoredScalar(ra[c]);
-      lever_[6 * k + 3 + std::size_t(c)] = StoredScalar(rb[c]);
-    }
-    const Vec3 nw = normal(k);  // the rounded row the kernel applies
-    const double normal_mass =
-        row_mass(B, a_[k], nw, lever_a(k).cross(nw)) + row_mass(B, b_[k], nw, lever_b(k).cross(nw));
-    const SoftRow row =
-        surfaces.compliance > 0.0
-            ? soft_row(surfaces.compliance, surfaces.damping_ratio, normal_mass, c.gap[k], h)
-            : SoftRow{0.0, rigid_bias(c, k, surfaces.restitution, B, h, settings)};
-    softness_[k] = row.softness;
-    bias_[k] = row.bias;
-    diag_max = std::max(diag_max, normal_mass + softness_[k]);
-    const double bound =
-        block_scale(a_[k], lever_a(k)) + block_scale(b_[k], lever_b(k)) + softness_[k];
-    float* mt = &metric_[k / kLanes * kMetricBlock + k % kLanes];
-    mt[0] = bound > 0.0 ? float(1.0 / bound) : 0.0f;
-    mt[kLanes] = float(bound);
+}
+
+// Contact k's frame, friction, lever arms, bias, softness and metric;
+// returns its normal row's diagonal of N.
+double CcpProblem::assemble_contact(std::size_t k, const Contacts& c,
+                                    const MaterialTable& materials, double h,
+                                    const ContactSettings& settings) {
+  const SolverBodies& B = *bodies_;
+  a_[k] = c.body_a[k];
+  b_[k] = c.body_b[k];
+  const Vec3& n = c.normal[k];
+  const SurfacePair& surfaces = materials.surfaces(c.surfaces[k]);
+  const Vec3 ra = c.point[k] - B.x[std::size_t(a_[k])];
+  const Vec3 rb = c.point[k] - B.x[std::size_t(b_[k])];
+  StoredScalar* f = &frame_[k / kLanes * kFrameBlock + k % kLanes];
+  for (int i = 0; i < 3; ++i) f[std::size_t(i) * kLanes] = StoredScalar(n[i]);
+  f[3 * kLanes] = StoredScalar(surfaces.friction);
+  make_tangents(k);
+  for (int i = 0; i < 3; ++i) {
+    lever_[6 * k + std::size_t(i)] = StoredScalar(ra[i]);
+    lever_[6 * k + 3 + std::size_t(i)] = StoredScalar(rb[i]);
   }
-  mark_soft_blocks();
-  // The gather loads a body's velocity as a four-number vector: a spare.
-  dv_.resize(B.inv_mass.size() + 1);
-  dw_.resize(B.inv_mass.size() + 1);
+  const Vec3 nw = normal(k);  // the rounded row the kernel applies
+  const double normal_mass =
+      row_mass(B, a_[k], nw, lever_a(k).cross(nw)) + row_mass(B, b_[k], nw, lever_b(k).cross(nw));
+  const SoftRow row =
+      surfaces.compliance > 0.0
+          ? soft_row(surfaces.compliance, surfaces.damping_ratio, normal_mass, c.gap[k], h)
+          : SoftRow{0.0, rigid_bias(c, k, surfaces.restitution, B, h, settings)};
+  softness_[k] = row.softness;
+  bias_[k] = row.bias;
+  const double bound =
+      block_scale(a_[k], lever_a(k)) + block_scale(b_[k], lever_b(k)) + softness_[k];
+  float* mt = &metric_[k / kLanes * kMetricBlock + k % kLanes];
+  mt[0] = bound > 0.0 ? float(1.0 / bound) : 0.0f;
+  mt[kLanes] = float(bound);
+  return normal_mass + softness_[k];
+}
+
+// The bilateral rows' diagonal of N; returns its largest entry (0: none).
+double CcpProblem::assemble_rows() {
+  const SolverBodies& B = *bodies_;
   row_diag_.resize(rows_.size());
+  double diag_max = 0.0;
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     const BilateralRow& r = rows_[j];
     row_diag_[j] = row_mass(B, r.a, r.lin_a, r.ang_a) + row_mass(B, r.b, r.lin_b, r.ang_b);
     diag_max = std::max(diag_max, row_diag_[j]);
   }
-  diag_max_ = diag_max > 0.0 ? diag_max : 1.0;
-  row_metric_.resize(rows_.size());
-  for (std::size_t j = 0; j < rows_.size(); ++j)
-    row_metric_[j] = 1.0 / (row_diag_[j] > 0.0 ? row_diag_[j] : diag_max_);
-  adj_.build(a_, b_, B.inv_mass.size(),
-             [&](std::int32_t i) { return B.inv_mass[std::size_t(i)] > 0.0; });
+  return diag_max;
 }
 
 namespace {

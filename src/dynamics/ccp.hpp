@@ -328,6 +328,12 @@ class CcpProblem {
   // A bound on the largest eigenvalue of one body's part of a contact's
   // block of N, at lever arm r (world rows).
   double block_scale(int body, const Vec3& r) const;
+  // assemble's stages.
+  void size_for(std::size_t nc, std::size_t bodies);
+  void pack_inverse_masses(const SolverBodies& B);
+  double assemble_contact(std::size_t k, const Contacts& c, const MaterialTable& materials,
+                          double h, const ContactSettings& settings);
+  double assemble_rows();
 
   const SolverBodies* bodies_ = nullptr;
   // The contacts assembled, read by overlaps_within (their gaps and radii);

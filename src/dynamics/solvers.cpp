@@ -64,6 +64,17 @@ struct Best {
   void take(double rms) { residual = stats.residual = rms; }
 };
 
+// The Lipschitz constant's first estimate, in the metric: |W^1/2 N W^1/2 u|
+// / |u| along u = (1, ..., 1) (W normalises N's diagonal blocks to at most
+// 1). u and Nu are scratch.
+double initial_lipschitz(const CcpProblem& p, Span u, Span Nu) {
+  std::fill(u.begin(), u.end(), 1.0);
+  p.scale_by_metric(u);
+  p.multiply(u, Nu);
+  p.scale_by_metric(Nu);
+  return std::max(std::sqrt(dot(Nu, Nu) / double(u.size())), 1e-12);
+}
+
 }  // namespace
 
 // Accelerated projected gradient descent with adaptive step, backtracking and
@@ -105,13 +116,7 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
   p.to_world(out, xs[ix]);
   p.world_gradient(xs[ix], gs[gx]);
   copy(xs[ix], xs[ibest]);  // the best until an iterate improves on it
-  // Initial Lipschitz estimate, in the metric: |W^1/2 N W^1/2 u| / |u|
-  // along u = (1, ..., 1). W normalises N's diagonal blocks to at most 1.
-  std::fill(xs[i1].begin(), xs[i1].end(), 1.0);
-  p.scale_by_metric(xs[i1]);
-  p.multiply(xs[i1], gs[g1]);
-  p.scale_by_metric(gs[g1]);
-  double L = std::max(std::sqrt(dot(gs[g1], gs[g1]) / double(m)), 1e-12);
+  double L = initial_lipschitz(p, xs[i1], gs[g1]);
   const double L_cap = 1e3 * double(m);
   double theta = 1.0;
   Best record;
