@@ -313,35 +313,29 @@ void Collider::broadphase(const Model& model, const Particles& p, const Bodies& 
 // back faster than it came.
 void Collider::struck_by_body(const Model& model, const Particles& p, const Bodies& bodies,
                               int body) {
-  const Vec3& v_body = bodies.velocity[std::size_t(body)];
-  const Vec3& w_body = bodies.angular_velocity[std::size_t(body)];
-  const bool moving = v_body.squaredNorm() > 0.0 || w_body.squaredNorm() > 0.0;
-  const RigidBody& rb = model.bodies[std::size_t(body)];
-  const Pose& pose = bodies.pose[std::size_t(body)];
-  const geo::Aabb bounds = geo::local_bounds(rb.shape);
+  const BodyStep frame(model, bodies, body);
+  const bool moving = frame.v.squaredNorm() > 0.0 || frame.w.squaredNorm() > 0.0;
+  const int material = model.bodies[std::size_t(body)].material;
   const double h = model.step;
-  const double body_travel = travel_in_step(bounds, v_body, w_body, h);
-  const Mat3 to_local = pose.orientation.conjugate().toRotationMatrix();
-  const Mat3 to_world = pose.orientation.toRotationMatrix();
   const std::size_t n = p.size();
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
   for (std::ptrdiff_t si = 0; si < std::ptrdiff_t(n); ++si) {
     static thread_local std::vector<geo::SurfaceHit> hits;
     const auto i = std::size_t(si);
-    const Vec3 local = to_local * (p.position[i] - pose.position);
-    const double reach = reach_[i] + body_travel;
-    if (!bounds.inflated(reach).overlaps({local, local})) continue;
+    const Vec3 local = frame.local(p.position[i]);
+    const double reach = reach_[i] + frame.travel;
+    if (!frame.bounds.inflated(reach).overlaps({local, local})) continue;
     hits.clear();
-    geo::query(rb.shape, local, reach, hits);
+    geo::query(frame.shape, local, reach, hits);
     if (hits.empty()) continue;
-    const Vec3 v_rel = p.velocity[i] - v_body - w_body.cross(p.position[i] - pose.position);
+    const Vec3 v_rel = p.velocity[i] - frame.v - frame.w.cross(p.position[i] - frame.pose.position);
     double approach = 0.0;
     for (const geo::SurfaceHit& hit : hits)
-      approach = std::max(approach, -v_rel.dot(to_world * hit.normal));
-    const double spin = p.angular_velocity[i].norm() + w_body.norm();
+      approach = std::max(approach, -v_rel.dot(frame.to_world * hit.normal));
+    const double spin = p.angular_velocity[i].norm() + frame.w_norm;
     const double closing =
         approach + spin * bounding_radius(model, p, i) + forced_change(model, p, i).norm();
-    const SurfacePair surface = model.materials.pair(rb.material, p.material[i]);
+    const SurfacePair surface = model.materials.pair(material, p.material[i]);
     blow_[i] += largest_blow(surface, p.mass[i], closing);  // one from each body
     if (!moving || approach == 0.0) continue;
     const double kick = (1.0 + surface.restitution) * (1.0 + surface.friction) * approach * h;
@@ -523,20 +517,21 @@ void Collider::pair_candidates(const Model& model, const Particles& p, std::size
   }
 }
 
+BodyStep::BodyStep(const Model& model, const Bodies& bodies, int body)
+    : shape(model.bodies[std::size_t(body)].shape),
+      pose(bodies.pose[std::size_t(body)]),
+      bounds(geo::local_bounds(shape)),
+      v(bodies.velocity[std::size_t(body)]),
+      w(bodies.angular_velocity[std::size_t(body)]),
+      v_norm(v.norm()),
+      w_norm(w.norm()),
+      travel(travel_in_step(bounds, v, w, model.step)),
+      to_local(pose.orientation.conjugate().toRotationMatrix()),
+      to_world(pose.orientation.toRotationMatrix()) {}
+
 void Collider::body_contacts(const Model& model, const Particles& p, const Bodies& bodies,
                              int body, Contacts& out) {
-  const RigidBody& rb = model.bodies[std::size_t(body)];
-  const Pose& pose = bodies.pose[std::size_t(body)];
-  const geo::Aabb bounds = geo::local_bounds(rb.shape);
-  const Vec3& v_body = bodies.velocity[std::size_t(body)];
-  const Vec3& w_body = bodies.angular_velocity[std::size_t(body)];
-  const double w_norm = w_body.norm(), v_norm = v_body.norm();
-  const double body_travel = travel_in_step(bounds, v_body, w_body, model.step);
-  // Matrices, not the quaternion, for the many points taken to the body's
-  // frame and normals taken back.
-  const Mat3 to_local = pose.orientation.conjugate().toRotationMatrix();
-  const Mat3 to_world = pose.orientation.toRotationMatrix();
-  auto local = [&](const Vec3& x) -> Vec3 { return to_local * (x - pose.position); };
+  const BodyStep frame(model, bodies, body);
   const int solver_index = int(p.size()) + body;
   // Against a body the cull leaves nothing out as out of reach, and the
   // manifold holds every member whatever the scene's contact.manifold: the
@@ -546,55 +541,65 @@ void Collider::body_contacts(const Model& model, const Particles& p, const Bodie
   // past the tolerance, nearer its image charge.)
   const SpeedChange unbounded{std::numeric_limits<double>::infinity(), 0.0};
   const Reduction rule{Manifold::Hold, model.solver.overlap_aim()};
-  const auto& mat = model.materials;
+  const int material = model.bodies[std::size_t(body)].material;
   run_chunked(p.size(), chunks_, out, used_, [&](std::size_t begin, std::size_t end, Contacts& part) {
     // Per thread and kept across steps: no allocation per chunk.
     static thread_local std::vector<geo::SurfaceHit> hits;
     static thread_local std::vector<Candidate> candidates;
     for (std::size_t i = begin; i < end; ++i) {
       if (p.carrier[i] == body) continue;  // it rides the body (dynamics/sleep.hpp)
-      // Cull by the particle's bounding sphere in the body frame.
-      const Vec3 local_centre = local(p.position[i]);
-      if (!bounds.inflated(reach_[i] + body_travel).overlaps({local_centre, local_centre})) continue;
-      const ParticleShape& s = model.shapes[std::size_t(p.shape[i])];
-      // A cluster (a flake: 19 spheres) far from the surface is passed over
-      // on one query of its centre. Distances to a surface are 1-Lipschitz,
-      // so no sphere within the bounding radius can then come closer than
-      // its own query's reach (below): the same hits, at 1 query, not 19.
-      if (s.centers.size() > 1) {
-        const double bounding = p.scale[i] * s.bounding_radius * (1.0 + 1e-9);
-        const double arm = (p.position[i] - pose.position).norm() + bounding;
-        const double surface_travel = (v_norm + w_norm * arm) * model.step;
-        hits.clear();
-        geo::query(rb.shape, local_centre, bounding + envelope_[i] + surface_travel, hits);
-        if (hits.empty()) continue;
-      }
-      const std::uint32_t surfaces = mat.pair_index(rb.material, p.material[i]);
       candidates.clear();
-      for (std::size_t k = 0; k < s.centers.size(); ++k) {
-        const Vec3& c = sphere_centre_[sphere_first_[i] + k];
-        const double r = p.scale[i] * s.radii[k];
-        // The body's surface may close in too (a splitter on its slide), by
-        // its speed along the normal; a drum turning in place adds nothing.
-        const Vec3 v_surface = v_body + w_body.cross(c - pose.position);
-        const double surface_travel = v_surface.norm() * model.step;
-        hits.clear();
-        geo::query(rb.shape, local(c), r + envelope_[i] + surface_travel, hits);
-        for (const geo::SurfaceHit& hit : hits) {
-          const double gap = hit.distance - r;
-          const Vec3 n = to_world * hit.normal;
-          if (gap >= envelope_[i] + std::max(0.0, v_surface.dot(n)) * model.step) continue;
-          const ContactKey key{kBodyTag | std::uint64_t(body), p.id[i], hit.feature,
-                               std::uint32_t(k)};
-          candidates.push_back({n, c - n * (r + 0.5 * gap), gap, r, key});
-        }
-      }
-      const PairMotion motion{pose.position,         v_body,     w_body,    p.position[i],
-                              p.velocity[i],         p.angular_velocity[i], model.step,
-                              unbounded,             change_[i]};
-      reduce_manifold(candidates, solver_index, int(i), surfaces, motion, rule, part);
+      if (!body_candidates(model, p, frame, body, i, hits, candidates)) continue;
+      const PairMotion motion{frame.pose.position, frame.v,       frame.w,
+                              p.position[i],       p.velocity[i], p.angular_velocity[i],
+                              model.step,          unbounded,     change_[i]};
+      reduce_manifold(candidates, solver_index, int(i),
+                      model.materials.pair_index(material, p.material[i]), motion, rule, part);
     }
   });
+}
+
+// Particle i's candidate contacts with the body; false when its bounding
+// sphere cannot reach the body this step.
+bool Collider::body_candidates(const Model& model, const Particles& p, const BodyStep& frame,
+                               int body, std::size_t i, std::vector<geo::SurfaceHit>& hits,
+                               std::vector<Candidate>& candidates) const {
+  // Cull by the particle's bounding sphere in the body frame.
+  const Vec3 local_centre = frame.local(p.position[i]);
+  if (!frame.bounds.inflated(reach_[i] + frame.travel).overlaps({local_centre, local_centre}))
+    return false;
+  const ParticleShape& s = model.shapes[std::size_t(p.shape[i])];
+  const double h = model.step;
+  // A cluster (a flake: 19 spheres) far from the surface is passed over
+  // on one query of its centre. Distances to a surface are 1-Lipschitz,
+  // so no sphere within the bounding radius can then come closer than
+  // its own query's reach (below): the same hits, at 1 query, not 19.
+  if (s.centers.size() > 1) {
+    const double bounding = p.scale[i] * s.bounding_radius * (1.0 + 1e-9);
+    const double arm = (p.position[i] - frame.pose.position).norm() + bounding;
+    const double surface_travel = (frame.v_norm + frame.w_norm * arm) * h;
+    hits.clear();
+    geo::query(frame.shape, local_centre, bounding + envelope_[i] + surface_travel, hits);
+    if (hits.empty()) return false;
+  }
+  for (std::size_t k = 0; k < s.centers.size(); ++k) {
+    const Vec3& c = sphere_centre_[sphere_first_[i] + k];
+    const double r = p.scale[i] * s.radii[k];
+    // The body's surface may close in too (a splitter on its slide), by
+    // its speed along the normal; a drum turning in place adds nothing.
+    const Vec3 v_surface = frame.v + frame.w.cross(c - frame.pose.position);
+    const double surface_travel = v_surface.norm() * h;
+    hits.clear();
+    geo::query(frame.shape, frame.local(c), r + envelope_[i] + surface_travel, hits);
+    for (const geo::SurfaceHit& hit : hits) {
+      const double gap = hit.distance - r;
+      const Vec3 n = frame.to_world * hit.normal;
+      if (gap >= envelope_[i] + std::max(0.0, v_surface.dot(n)) * h) continue;
+      const ContactKey key{kBodyTag | std::uint64_t(body), p.id[i], hit.feature, std::uint32_t(k)};
+      candidates.push_back({n, c - n * (r + 0.5 * gap), gap, r, key});
+    }
+  }
+  return true;
 }
 
 }  // namespace ces

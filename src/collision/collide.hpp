@@ -19,6 +19,23 @@ struct PlateFrame {
   Vec3 normal, x_axis, y_axis, origin;
 };
 
+// A body over this step, as its contacts with particles read it: its pose
+// and velocity, its shape's box in its own frame and how far that moves,
+// and the rotations to and from its frame (matrices, not the quaternion,
+// for the many points taken there and normals taken back).
+struct BodyStep {
+  BodyStep(const Model& model, const Bodies& bodies, int body);
+  Vec3 local(const Vec3& x) const { return to_local * (x - pose.position); }
+
+  const geo::Shape& shape;
+  const Pose& pose;
+  geo::Aabb bounds;
+  Vec3 v, w;
+  double v_norm, w_norm;
+  double travel;  // of the box's farthest point this step
+  Mat3 to_local, to_world;
+};
+
 class Collider {
  public:
   // Each particle's collision envelope for this step, and the pairs of
@@ -44,6 +61,9 @@ class Collider {
                        double envelope, std::vector<Candidate>& candidates) const;
   void body_contacts(const Model& model, const Particles& p, const Bodies& bodies, int body,
                      Contacts& out);
+  bool body_candidates(const Model& model, const Particles& p, const BodyStep& frame, int body,
+                       std::size_t i, std::vector<geo::SurfaceHit>& hits,
+                       std::vector<Candidate>& candidates) const;
 
   std::vector<std::size_t> sphere_first_;  // particle i's spheres: [first[i], first[i + 1])
   std::vector<Vec3> sphere_centre_;        // in the world, this step
