@@ -209,8 +209,8 @@ TEST(HostileOverrides, MessagesSayWhatAPathIs) {
   emptied.removals = {"bodies.a"};
   emptied.overrides = {{"bodies.a.material", "steel"}};
   expect_one(load_errors(scene, emptied),
-             "'bodies' has no item 'a', the list is empty (every --unset comes before the --set "
-             "values)");
+             "'bodies' has no item 'a', the list is empty here (every --unset applies before the "
+             "--set values)");
 }
 
 TEST(HostileOverrides, ValuesAreHeldToTheSameBounds) {
@@ -375,18 +375,32 @@ TEST(HostileSemantics, ParticleMassesOutsideTheBalanceAreRefusedAtTheirLine) {
                             "    region: {box: {min: [0, 0, 0], max: [0.1, 0.1, 0.1]}}\n"
                             "    rate: 10 /s\n"
                             "    mix:\n"
-                            "      - {material: copper, size: {uniform: {min: MIN, max: 1 mm}}}\n";
-  const auto with = [&](const std::string& min) {
+                            "      - {material: copper, SIZE}\n";
+  const auto with = [&](const std::string& size) {
     std::string text = scene;
-    text.replace(text.find("MIN"), 3, min);
+    text.replace(text.find("SIZE"), 4, size);
     return text;
   };
-  EXPECT_NO_THROW(load_text(with("0.2 um"), "/tmp/fine.yaml"));
-  // 1 nm of copper: 4.7e-24 kg.
-  const auto errors = text_errors(with("1 nm"), "dust.yaml");
-  expect_one(errors,
-             "dust.yaml:10:9: feeds[0].mix[0]: feed 'f' makes particles of 4.69145e-24 "
-             "kg, expected 1e-18 to 1e+09 kg");
+  // Reached ends: a uniform law's min, a drawn flake's thinnest and
+  // narrowest; 1 nm of copper is 4.7e-24 kg.
+  EXPECT_NO_THROW(load_text(with("size: {uniform: {min: 0.2 um, max: 1 mm}}"), "/tmp/fine.yaml"));
+  expect_one(text_errors(with("size: {uniform: {min: 1 nm, max: 1 mm}}"), "dust.yaml"),
+             "dust.yaml:10:9: feeds[0].mix[0]: feed 'f' makes particles of 4.69145e-24 kg, "
+             "expected 1e-18 to 1e+09 kg");
+  expect_one(text_errors(with("shape: flake, thickness: {uniform: {min: 1 nm, max: 0.2 mm}}, "
+                              "width: {uniform: {min: 1 nm, max: 1 mm}}"),
+                         "foil.yaml"),
+             "foil.yaml:10:9: feeds[0].mix[0]: feed 'f' makes particles of");
+  // A normal or lognormal law's far tail is not reached: a min of 0 there
+  // makes no particle of 0 kg.
+  EXPECT_NO_THROW(
+      load_text(with("size: {normal: {mean: 1 mm, sd: 0.2 mm, min: 0 mm}}"), "/tmp/normal.yaml"));
+  EXPECT_NO_THROW(
+      load_text(with("size: {lognormal: {median: 1 mm, sigma: 0.5, min: 0 mm}}"), "/tmp/log.yaml"));
+  // The heavy end: a 1 km boulder of copper (4.7e12 kg).
+  const auto boulder = text_errors(with("size: {uniform: {min: 1 mm, max: 1 km}}"), "rock.yaml");
+  EXPECT_NE(all(boulder).find("feed 'f' makes particles of 4.69145e+12 kg"), std::string::npos)
+      << all(boulder);
 }
 
 // A region partly inside a body can still place particles: only a region

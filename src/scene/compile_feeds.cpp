@@ -118,30 +118,36 @@ std::vector<double> Compiler::read_mix(const Node& mix, Feed& feed) {
     component.shape = *shape;
     component.shape_size = shapes_.size(*shape);
     component.size = *size;
-    const double smallest = law_end(*size, c.at("size"), false) / component.shape_size;
-    const double largest = law_end(*size, c.at("size"), true) / component.shape_size;
-    const double unit_volume = model_->shapes[std::size_t(*shape)].volume;
-    check_masses(
-        c, component,
-        {unit_volume * smallest * smallest * smallest, unit_volume * largest * largest * largest},
-        feed.name);
+    const double smallest = law_end(*size, c.at("size"), false);
+    const double largest = law_end(*size, c.at("size"), true);
+    check_masses(c, component,
+                 {scaled_volume(component, smallest), scaled_volume(component, largest)},
+                 feed.name);
     feed.mix.push_back(component);
-    across.push_back(2.0 * model_->shapes[std::size_t(*shape)].bounding_radius * largest);
+    across.push_back(2.0 * model_->shapes[std::size_t(*shape)].bounding_radius * largest /
+                     component.shape_size);
   }
   if (std::abs(total - 1.0) > 1e-9)
     diags_.error(mix, "the fractions add up to " + format(total) + ", expected 1");
   return across;
 }
 
-// The diameter of a law's smallest (upper: largest) particles. Normal and
-// lognormal laws without a min (max) have none: their one-in-a-million
-// size stands in for it.
+// The diameter of a law's smallest (upper: largest) particles. A constant,
+// uniform or sieve law reaches its ends; a normal or lognormal law reaches
+// a far tail, or its min or max there, only by a vanishing chance: its
+// one-in-a-million size stands in (a min or max in the bulk is that size,
+// to a millionth of the spread).
 double Compiler::law_end(const feed::SizeDistribution& d, const Node& law, bool upper) {
-  const Entry& e = law.entries.front();
-  const bool closed = e.key == "constant" || e.key == "uniform" || e.key == "sieve" ||
-                      e.value.find(upper ? "max" : "min");
-  const double q = closed ? 0.0 : 1e-6;
+  const std::string& kind = law.entries.front().key;
+  const bool reached = kind == "constant" || kind == "uniform" || kind == "sieve";
+  const double q = reached ? 0.0 : 1e-6;
   return d.quantile_by_number(upper ? 1.0 - q : q);
+}
+
+// The volume of a component's particle of the given size.
+double Compiler::scaled_volume(const FeedComponent& c, double size) const {
+  const double scale = size / c.shape_size;
+  return model_->shapes[std::size_t(c.shape)].volume * scale * scale * scale;
 }
 
 // The masses of a component's lightest and heaviest particles (from the

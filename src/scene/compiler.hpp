@@ -104,6 +104,7 @@ class Compiler {
   std::optional<geo::Aabb> outlet(const Node& o);
   std::vector<double> read_mix(const Node& mix, Feed& feed);
   static double law_end(const feed::SizeDistribution& d, const Node& law, bool upper);
+  double scaled_volume(const FeedComponent& c, double size) const;
   void check_masses(const Node& c, const FeedComponent& component,
                     const std::array<double, 2>& volume, const std::string& feed);
   void check_fit(const Node& region, const geo::Aabb& box, const std::vector<double>& across);

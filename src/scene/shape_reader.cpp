@@ -99,7 +99,7 @@ std::vector<DrawnShape::Rung> ShapeReader::ladder(const std::string& name, doubl
     made[k] = make_particle_shape(spheres.centers, spheres.radii);
   }
   for (std::size_t k = 0; k < fresh.size(); ++k)
-    shape_index_[rung_key(name, fresh[k])] = *add_shape(made[k], nullptr, name);
+    shape_index_[rung_key(name, fresh[k])] = add_shape(made[k], nullptr, name).value();
   std::vector<DrawnShape::Rung> out;
   for (const double a : reached) out.push_back(rung(name, a));
   return out;

@@ -18,7 +18,8 @@ constexpr double kOnBodyReach = 1.25;
 int body_under(const World& world, std::size_t i, std::vector<geo::SurfaceHit>& hits) {
   const Particles& p = world.particles();
   const Model& m = world.model();
-  const double reach = kOnBodyReach * bounding_radius(m, p, i);
+  const double reach =
+      kOnBodyReach * p.scale[i] * m.shapes[std::size_t(p.shape[i])].bounding_radius;
   for (std::size_t b = 0; b < m.bodies.size(); ++b) {
     hits.clear();
     geo::query(m.bodies[b].shape, world.bodies().pose[b].inverse_apply(p.position[i]), reach, hits);
