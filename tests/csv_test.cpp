@@ -29,7 +29,9 @@ TEST(Csv, ANumberIsTheWholeFieldAndFinite) {
   EXPECT_EQ(number("1.5"), 1.5);
   EXPECT_EQ(number("+1.5"), 1.5);
   EXPECT_EQ(number("-2e-3"), -2e-3);
-  for (const char* bad : {"", "+", "1.5x", "1,5", "nan", "inf", "-inf", "+-1", "1e999", " 1"})
+  EXPECT_EQ(number("+.5"), 0.5);
+  for (const char* bad : {"", "+", "++1", "1.5x", "1,5", "nan", "inf", "+inf", "-inf", "+-1",
+                          "1e999", "1e-400", "0x1p3", " 1"})
     EXPECT_FALSE(number(bad).has_value()) << "'" << bad << "'";
 }
 

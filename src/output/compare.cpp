@@ -172,7 +172,7 @@ Table read_table(const std::filesystem::path& file, std::string_view expected_he
   t.header = split(csv::without_bom(line));
   if (!expected_header.empty() && t.header != split(expected_header))
     throw IoError(file.string() + ":1: expected the header " + std::string(expected_header) +
-                  ", found '" + std::string(csv::trim(line)) + "'");
+                  ", found '" + std::string(csv::trim(csv::without_bom(line))) + "'");
   for (int n = 2; std::getline(in, line); ++n) {
     if (csv::trim(line).empty()) continue;
     t.rows.push_back(split(line));

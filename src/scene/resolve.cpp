@@ -315,9 +315,11 @@ Node* override_target(Node& root, const std::vector<std::string>& segments,
       child->mark = mark;
     } else if (!child && n->is_sequence()) {
       const std::string expected =
-          n->items.empty() ? "the list is empty (every --unset comes before the --set values)"
-                           : "expected an index below " + std::to_string(n->items.size()) +
-                                 " or the name of an item";
+          !n->items.empty() ? "expected an index below " + std::to_string(n->items.size()) +
+                                  " or the name of an item"
+          : mark.file == "--set"
+              ? "the list is empty here (every --unset applies before the --set values)"
+              : "the list is empty, expected an item to set a key of";
       diags.error(
           mark, shown,
           "invalid override path: '" + walked + "' has no item '" + excerpt(s) + "', " + expected);
