@@ -63,13 +63,13 @@ Collection::Collection(std::vector<Collector> collectors, std::optional<geo::Aab
   for (std::vector<Tally>& l : lost_) l.resize(materials_);
 }
 
-Tally Collection::collected(std::size_t m) const {
+Tally Collection::collected_total(std::size_t m) const {
   Tally sum;
   for (const CollectorTallies& t : tallies_) sum += t.total[m];
   return sum;
 }
 
-Tally Collection::lost(std::size_t m) const {
+Tally Collection::lost_total(std::size_t m) const {
   Tally sum;
   for (const std::vector<Tally>& reason : lost_) sum += reason[m];
   return sum;

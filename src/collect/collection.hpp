@@ -73,8 +73,8 @@ class Collection {
   const std::vector<CollectorTallies>& collectors() const { return tallies_; }
   const std::vector<Tally>& lost(LossReason r) const { return lost_[std::size_t(r)]; }
   // Material m over every collector, and over every way of being lost.
-  Tally collected(std::size_t m) const;
-  Tally lost(std::size_t m) const;
+  Tally collected_total(std::size_t m) const;
+  Tally lost_total(std::size_t m) const;
 
   // In (time, id) order.
   const std::vector<Crossing>& crossings() const { return crossings_; }

@@ -269,6 +269,35 @@ void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts
 
 }  // namespace
 
+// A body over this step, as its contacts with particles read it: its pose
+// and velocity, its shape's box in its own frame and how far that moves,
+// and the rotations to and from its frame (matrices, not the quaternion,
+// for the many points taken there and normals taken back).
+struct BodyStep {
+  BodyStep(const Model& model, const Bodies& bodies, int body);
+  Vec3 local(const Vec3& x) const { return to_local * (x - pose.position); }
+
+  const geo::Shape& shape;
+  const Pose& pose;
+  geo::Aabb bounds;
+  Vec3 v, w;
+  double v_norm, w_norm;
+  double travel;  // of the box's farthest point this step
+  Mat3 to_local, to_world;
+};
+
+BodyStep::BodyStep(const Model& model, const Bodies& bodies, int body)
+    : shape(model.bodies[std::size_t(body)].shape),
+      pose(bodies.pose[std::size_t(body)]),
+      bounds(geo::local_bounds(shape)),
+      v(bodies.velocity[std::size_t(body)]),
+      w(bodies.angular_velocity[std::size_t(body)]),
+      v_norm(v.norm()),
+      w_norm(w.norm()),
+      travel(travel_in_step(bounds, v, w, model.step)),
+      to_local(pose.orientation.conjugate().toRotationMatrix()),
+      to_world(pose.orientation.toRotationMatrix()) {}
+
 void Collider::broadphase(const Model& model, const Particles& p, const Bodies& bodies) {
   const std::size_t n = p.size();
   const double h = model.step;
@@ -516,18 +545,6 @@ void Collider::pair_candidates(const Model& model, const Particles& p, std::size
     }
   }
 }
-
-BodyStep::BodyStep(const Model& model, const Bodies& bodies, int body)
-    : shape(model.bodies[std::size_t(body)].shape),
-      pose(bodies.pose[std::size_t(body)]),
-      bounds(geo::local_bounds(shape)),
-      v(bodies.velocity[std::size_t(body)]),
-      w(bodies.angular_velocity[std::size_t(body)]),
-      v_norm(v.norm()),
-      w_norm(w.norm()),
-      travel(travel_in_step(bounds, v, w, model.step)),
-      to_local(pose.orientation.conjugate().toRotationMatrix()),
-      to_world(pose.orientation.toRotationMatrix()) {}
 
 void Collider::body_contacts(const Model& model, const Particles& p, const Bodies& bodies,
                              int body, Contacts& out) {

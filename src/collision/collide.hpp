@@ -19,22 +19,8 @@ struct PlateFrame {
   Vec3 normal, x_axis, y_axis, origin;
 };
 
-// A body over this step, as its contacts with particles read it: its pose
-// and velocity, its shape's box in its own frame and how far that moves,
-// and the rotations to and from its frame (matrices, not the quaternion,
-// for the many points taken there and normals taken back).
-struct BodyStep {
-  BodyStep(const Model& model, const Bodies& bodies, int body);
-  Vec3 local(const Vec3& x) const { return to_local * (x - pose.position); }
-
-  const geo::Shape& shape;
-  const Pose& pose;
-  geo::Aabb bounds;
-  Vec3 v, w;
-  double v_norm, w_norm;
-  double travel;  // of the box's farthest point this step
-  Mat3 to_local, to_world;
-};
+// A body's pose and motion over the step (collide.cpp).
+struct BodyStep;
 
 class Collider {
  public:

@@ -37,8 +37,8 @@ Fates fates(const RunRecord& r) {
   const std::size_t n = r.fed.size();
   Fates f{std::vector<Tally>(n), std::vector<Tally>(n)};
   for (std::size_t m = 0; m < n; ++m) {
-    f.collected[m] = r.collection->collected(m);
-    f.lost[m] = r.collection->lost(m);
+    f.collected[m] = r.collection->collected_total(m);
+    f.lost[m] = r.collection->lost_total(m);
   }
   return f;
 }

@@ -13,7 +13,7 @@ const std::string& material_name(const Simulation& sim, int m) {
 
 // Mass of material m whose fate is known: collected anywhere, or lost.
 MassUnits settled_mass(const Collection& c, int m) {
-  return c.collected(std::size_t(m)).mass + c.lost(std::size_t(m)).mass;
+  return c.collected_total(std::size_t(m)).mass + c.lost_total(std::size_t(m)).mass;
 }
 
 ProductResult product_result(const Collection& c, int collector, int product,
