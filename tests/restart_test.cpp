@@ -223,6 +223,20 @@ TEST(Restart, AnEarlierSummaryListingFoldersRemovesNoneOfThem) {
   EXPECT_FALSE(fs::exists(dir / "partial"));
 }
 
+// A partial/trajectories that links elsewhere is a link to clear, not a
+// folder of this run's frames: the frames it points at stay.
+TEST(Restart, AWorkFolderLinkingElsewhereHasNoneOfItsTargetsFramesRemoved) {
+  const fs::path dir = fresh_dir("linked_frames");
+  const fs::path outside = fresh_dir("linked_frames_outside");
+  std::ofstream(outside / "frame_000000.vtp") << "theirs";
+  fs::create_directories(dir / "partial");
+  fs::create_directory_symlink(outside, dir / "partial" / "trajectories");
+  const Outcome o = ces_sim(kTiny + " -o " + dir.string() + " --quiet");
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_EQ(read_text(outside / "frame_000000.vtp"), "theirs");
+  EXPECT_TRUE(fs::exists(dir / "trajectories" / "frame_000001.vtp"));
+}
+
 // Each output that cannot be written is named in the reason, in the order
 // they failed: a frame mid-run (its temporary's place taken by a folder),
 // then bins.csv among the outputs written at the end. A later failure adds

@@ -66,7 +66,8 @@ void clear_work(const fs::path& work) {
     if (folder.holds(name)) fs::remove(work / name);
     if (folder.holds(name + ".tmp")) fs::remove(work / (name + ".tmp"));
   }
-  if (fs::is_directory(work / "trajectories"))
+  // The folder itself, not a link: a link's target holds someone else's frames.
+  if (fs::is_directory(fs::symlink_status(work / "trajectories")))
     for (const fs::directory_entry& e : fs::directory_iterator(work / "trajectories"))
       if (e.path().extension() == ".vtp" && e.path().stem().string().starts_with("frame_"))
         fs::remove(e.path());
@@ -114,7 +115,7 @@ void OutputFolder::publish(const std::vector<std::string>& files) const {
     }
     const Folder out(dir_);
     for (const std::string& f : earlier)
-      if (out.holds(f) && std::find(files.begin(), files.end(), f) == files.end())
+      if (std::find(files.begin(), files.end(), f) == files.end() && out.holds(f))
         fs::remove(dir_ / f);
     fs::rename(work_ / "summary.json", dir_ / "summary.json");
     clear_work(work_);
