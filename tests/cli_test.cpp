@@ -207,7 +207,17 @@ TEST(Cli, NumbersOutOfRangeAreRefusedAsWritten) {
       {"compare a b --tol-mass nan", "--tol-mass: got 'nan', expected a number >= 0"},
       {"compare a b --tol-w1 -1", "--tol-w1: got '-1', expected a number >= 0"},
       {"study " + scene("tiny.yaml") + " --vary seed=1,2 --jobs 0",
-       "--jobs: got '0', expected a whole number >= 1"},
+       "--jobs: got '0', expected a whole number from 1 to 2147483647"},
+      {"study " + scene("tiny.yaml") + " --vary seed=1,2 --jobs 4294967297",
+       "--jobs: got '4294967297', expected a whole number from 1 to 2147483647"},
+      {"study " + scene("tiny.yaml") + " --vary seed=1,2 --case -1",
+       "--case: got '-1', expected a whole number >= 0"},
+      {scene("tiny.yaml") + " --threads 010",
+       "--threads: got '010', expected a whole number from 1 "
+       "to 1024"},
+      {scene("tiny.yaml") + " --threads 0x10",
+       "--threads: got '0x10', expected a whole number "
+       "from 1 to 1024"},
       {scene("tiny.yaml") + " --seed -1", "--seed: got '-1', expected a whole number >= 0"},
       {scene("tiny.yaml") + " --seed 010", "--seed: got '010', expected a whole number >= 0"},
       {scene("tiny.yaml") + " --seed 18446744073709551616",

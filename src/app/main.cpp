@@ -28,6 +28,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <new>
 #include <optional>
 #include <string>
@@ -74,27 +75,38 @@ struct Args {
   ces::output::CompareOptions tolerances;
 };
 
-// A finite number, or a whole one written in decimal digits that fits
-// 64 bits, at least `least`. CLI11's own checks let NaN through, wrap a
-// negative count into a huge one, read a leading 0 as octal, and print
-// their bounds with 310 digits.
-CLI::Validator at_least(double least, bool whole) {
-  const std::string what = std::string(whole ? "a whole number" : "a number") + " >= " +
-                           std::to_string(int(least));
+// Numbers on the command line, checked as written: CLI11's own checks let
+// NaN through, wrap a negative count into a huge one, read a leading 0 as
+// octal (and 0x as hex), and print their bounds with 310 digits.
+constexpr std::uint64_t kNoMost = std::numeric_limits<std::uint64_t>::max();
+
+// A whole number in decimal digits from `least` to `most`.
+CLI::Validator whole_number(std::uint64_t least, std::uint64_t most = kNoMost) {
+  const std::string what =
+      "a whole number " + (most == kNoMost
+                               ? ">= " + std::to_string(least)
+                               : "from " + std::to_string(least) + " to " + std::to_string(most));
   return CLI::Validator(
-      [least, whole, what](std::string& text) -> std::string {
-        bool ok = false;
-        if (whole) {
-          std::uint64_t n = 0;
-          const char* end = text.data() + text.size();
-          const auto [at, error] = std::from_chars(text.data(), end, n);
-          const bool octal_looking = text.size() > 1 && text[0] == '0';
-          ok = error == std::errc() && at == end && !octal_looking && double(n) >= least;
-        } else {
-          char* end = nullptr;
-          const double x = std::strtod(text.c_str(), &end);
-          ok = end != text.c_str() && *end == '\0' && std::isfinite(x) && x >= least;
-        }
+      [least, most, what](std::string& text) -> std::string {
+        std::uint64_t n = 0;
+        const char* end = text.data() + text.size();
+        const auto [at, error] = std::from_chars(text.data(), end, n);
+        const bool octal_looking = text.size() > 1 && text[0] == '0';
+        const bool ok =
+            error == std::errc() && at == end && !octal_looking && n >= least && n <= most;
+        return ok ? "" : "got '" + text + "', expected " + what;
+      },
+      what);
+}
+
+// A finite number at least `least`.
+CLI::Validator number_at_least(double least) {
+  const std::string what = "a number >= " + std::to_string(int(least));
+  return CLI::Validator(
+      [least, what](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double x = std::strtod(text.c_str(), &end);
+        const bool ok = end != text.c_str() && *end == '\0' && std::isfinite(x) && x >= least;
         return ok ? "" : "got '" + text + "', expected " + what;
       },
       what);
@@ -129,9 +141,9 @@ void add_scene_options(CLI::App& app, Args& args) {
                  "Remove a scene key or list item before the --set values: key.path")
       ->type_name("K");
   app.add_option("--seed", args.seed, "Random seed (wins over the scene's)")
-      ->check(at_least(0, true));
-  app.add_option("--threads", args.threads, "Worker threads (1 to 1024)")
-      ->check(CLI::Range(1, 1024));
+      ->check(whole_number(0));
+  app.add_option("--threads", args.threads, "Worker threads")
+      ->check(whole_number(1, 1024));
   app.add_option("--include-path", args.include_paths,
                  "A folder includes may come from besides the scene's own (repeatable)")
       ->type_name("DIR")
@@ -269,8 +281,9 @@ CLI::App* add_study_command(CLI::App& app, Args& args, StudyArgs& study) {
   cmd->add_option("-o,--out", study.options.out_dir, "Study folder (default: study)")
       ->check(kFolder);
   cmd->add_option("--jobs", study.options.jobs, "Cases at once (default: the number of cores)")
-      ->check(at_least(1, true));
-  cmd->add_option("--case", study.only_case, "Run only case K (see --list-cases)");
+      ->check(whole_number(1, std::numeric_limits<int>::max()));
+  cmd->add_option("--case", study.only_case, "Run only case K (see --list-cases)")
+      ->check(whole_number(0));
   cmd->add_option("--scheduler", study.scheduler,
                   "Who runs the cases: local (this process, --jobs at a time), parallel (GNU "
                   "parallel, --jobs at a time, then measured here) or slurm (writes a job-array "
@@ -385,23 +398,23 @@ int main(int argc, char** argv) {
   compare_cmd
       ->add_option("--tol-count", args.tolerances.tol_count,
                    "Particles a bin or product may differ by (default 0)")
-      ->check(at_least(0, true));
+      ->check(whole_number(0));
   compare_cmd
       ->add_option("--tol-mass", args.tolerances.tol_mass,
                    "Mass difference per cell as a fraction of that material's total over the "
                    "collector's rows of the file (the larger of the two folders'); "
                    "also the absolute tolerance on grade and recovery (default 0)")
-      ->check(at_least(0, false));
+      ->check(number_at_least(0));
   compare_cmd
       ->add_option("--tol-w1", args.tolerances.tol_w1_mm,
                    "Wasserstein-1 distance (mm) between landing distributions (default 0)")
-      ->check(at_least(0, false));
+      ->check(number_at_least(0));
   CLI::App* resume_cmd = app.add_subcommand(
       "resume", "Continue an unfinished run from its checkpoint (scenes with output.checkpoint)");
   resume_cmd->add_option("dir", args.dir_a, "The run's output folder (it holds partial/)")
       ->required();
-  resume_cmd->add_option("--threads", args.threads, "Worker threads (1 to 1024)")
-      ->check(CLI::Range(1, 1024));
+  resume_cmd->add_option("--threads", args.threads, "Worker threads")
+      ->check(whole_number(1, 1024));
   resume_cmd->add_flag("-q,--quiet", args.quiet, "No progress line and no end-of-run report");
 
   StudyArgs study_args;
