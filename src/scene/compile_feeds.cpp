@@ -1,5 +1,6 @@
-#include "common/tally.hpp"
 #include "scene/compiler.hpp"
+
+#include "common/tally.hpp"
 
 namespace ces::scene {
 
@@ -94,13 +95,7 @@ std::vector<double> Compiler::read_mix(const Node& mix, Feed& feed) {
       component.material = *material;
       across.push_back(2.0 * drawn->largest_bounding_radius(model_->shapes));
       component.drawn = std::move(*drawn);
-      const Node& extent = c.find("width") ? c.at("width") : c.at("length");
-      const std::array<double, 2> volume = {
-          component.drawn->volume(law_end(component.drawn->thickness, c.at("thickness"), false),
-                                  law_end(component.drawn->extent, extent, false)),
-          component.drawn->volume(law_end(component.drawn->thickness, c.at("thickness"), true),
-                                  law_end(component.drawn->extent, extent, true))};
-      check_masses(c, component, volume, feed.name);
+      check_masses(c, component, feed.name);
       feed.mix.push_back(component);
       continue;
     }
@@ -118,14 +113,10 @@ std::vector<double> Compiler::read_mix(const Node& mix, Feed& feed) {
     component.shape = *shape;
     component.shape_size = shapes_.size(*shape);
     component.size = *size;
-    const double smallest = law_end(*size, c.at("size"), false);
-    const double largest = law_end(*size, c.at("size"), true);
-    check_masses(c, component,
-                 {scaled_volume(component, smallest), scaled_volume(component, largest)},
-                 feed.name);
+    check_masses(c, component, feed.name);
     feed.mix.push_back(component);
-    across.push_back(2.0 * model_->shapes[std::size_t(*shape)].bounding_radius * largest /
-                     component.shape_size);
+    across.push_back(2.0 * model_->shapes[std::size_t(*shape)].bounding_radius *
+                     law_end(*size, c.at("size"), true) / component.shape_size);
   }
   if (std::abs(total - 1.0) > 1e-9)
     diags_.error(mix, "the fractions add up to " + format(total) + ", expected 1");
@@ -144,20 +135,26 @@ double Compiler::law_end(const feed::SizeDistribution& d, const Node& law, bool 
   return d.quantile_by_number(upper ? 1.0 - q : q);
 }
 
-// The volume of a component's particle of the given size.
-double Compiler::scaled_volume(const FeedComponent& c, double size) const {
-  const double scale = size / c.shape_size;
-  return model_->shapes[std::size_t(c.shape)].volume * scale * scale * scale;
+// The volume of a component's smallest (upper: largest) particle: of its
+// law's end, or of a drawn shape's thinnest and narrowest (thickest and
+// widest).
+double Compiler::end_volume(const Node& c, const FeedComponent& component, bool upper) const {
+  if (const auto& d = component.drawn) {
+    const Node& extent = c.find("width") ? c.at("width") : c.at("length");
+    return d->volume(law_end(d->thickness, c.at("thickness"), upper),
+                     law_end(d->extent, extent, upper));
+  }
+  const double scale = law_end(component.size, c.at("size"), upper) / component.shape_size;
+  return model_->shapes[std::size_t(component.shape)].volume * scale * scale * scale;
 }
 
-// The masses of a component's lightest and heaviest particles (from the
-// volumes of its smallest and largest) against those the balance counts
-// exactly: refused here, with the line, rather than at the step that
-// draws one.
+// The masses of a component's lightest and heaviest particles against
+// those the balance counts exactly: refused here, with the line, rather
+// than at the step that draws one.
 void Compiler::check_masses(const Node& c, const FeedComponent& component,
-                            const std::array<double, 2>& volume, const std::string& feed) {
+                            const std::string& feed) {
   const double density = model_->materials.materials()[std::size_t(component.material)].density;
-  for (const double v : volume) {
+  for (const double v : {end_volume(c, component, false), end_volume(c, component, true)}) {
     if (tally_holds(density * v)) continue;
     diags_.error(c, "feed '" + feed + "' makes particles of " + format(density * v) +
                         " kg, expected " + format(kMassUnit) + " to " + format(kMaxParticleMass) +

@@ -5,7 +5,6 @@
 // compile_outputs.cpp (collectors, separator physics, outputs).
 #pragma once
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
@@ -104,9 +103,8 @@ class Compiler {
   std::optional<geo::Aabb> outlet(const Node& o);
   std::vector<double> read_mix(const Node& mix, Feed& feed);
   static double law_end(const feed::SizeDistribution& d, const Node& law, bool upper);
-  double scaled_volume(const FeedComponent& c, double size) const;
-  void check_masses(const Node& c, const FeedComponent& component,
-                    const std::array<double, 2>& volume, const std::string& feed);
+  double end_volume(const Node& c, const FeedComponent& component, bool upper) const;
+  void check_masses(const Node& c, const FeedComponent& component, const std::string& feed);
   void check_fit(const Node& region, const geo::Aabb& box, const std::vector<double>& across);
   void check_free(const Node& region, const geo::Aabb& box);
   void check_feed_counts();
