@@ -93,7 +93,7 @@ struct SceneRun {
   int exit_code = -1;
   bool complete = false;
   int threads = 0;
-  double end_time = 0, simulated = 0;
+  double simulated = 0;
   double process_wall = 0;  // seconds, measured around the process
   double wall_total = 0;    // seconds, as summary.json reports it
   std::vector<std::pair<std::string, double>> stages;  // summary.json wall_time_s.stages

@@ -26,6 +26,7 @@ mkdir -p "$out"
 cores=$(nproc)
 resuming=false
 if [ "${1:-}" = --resume ]; then
+  [ $# -eq 1 ] || { echo "bench/industrial.sh: --resume takes no other argument" >&2; exit 2; }
   [ -f "$out/bench.args" ] || { echo "bench/industrial.sh: no bench in $out to resume" >&2; exit 2; }
   resuming=true
   read -r end short < "$out/bench.args"
@@ -67,14 +68,23 @@ except (OSError, ValueError, KeyError):
 sys.exit(0 if (folder / "checkpoint.bin").exists() and abs(t - at) < 1e-9 else 1)
 PY
 }
+ended_early() {
+  echo "bench/industrial.sh: the full run ended before its checkpoint at $at s was kept;" \
+    "run the bench afresh" >&2
+  exit 1
+}
+# Looks again only when the run has written its summary (each checkpoint,
+# minutes apart), so that the watching costs the timed run nothing.
 keep_checkpoint() {
-  until checkpoint_at; do
-    if complete "$out/full"; then
-      echo "bench/industrial.sh: the full run ended before its checkpoint at $at s was kept;" \
-        "run the bench afresh" >&2
-      exit 1
+  local seen= now
+  while :; do
+    now=$(stat -c %Y "$out/full/partial/summary.json" 2>/dev/null || true)
+    if [ "$now" != "$seen" ]; then
+      seen=$now
+      checkpoint_at && break
+      complete "$out/full" && ended_early
     fi
-    sleep 1
+    sleep 5
   done
   for threads in 1 2; do
     rm -rf "$out/resume_$threads"
@@ -120,6 +130,13 @@ if ! $resuming; then
   echo "$end $short" > "$out/bench.args"
   date -u '+%Y-%m-%d %H:%M UTC' > "$out/start.txt"
 fi
+# The binary the bench began with: a resumed run's steps must be its own.
+binary_sum=$(sha256sum "$bin" | cut -d' ' -f1)
+if $resuming && [ -f "$out/bench.binary" ] && [ "$(cat "$out/bench.binary")" != "$binary_sum" ]; then
+  echo "bench/industrial.sh: $bin is not the binary this bench began with" >&2
+  exit 2
+fi
+echo "$binary_sum" > "$out/bench.binary"
 sample_load &
 sampler=$!
 keeper=
@@ -129,13 +146,10 @@ start=$(cat "$out/start.txt")
 # One step: the process without particles.
 $resuming && complete "$out/empty" || run empty "$cores" 0.0005
 if [ ! -e "$out/resume.ready" ]; then
-  if $resuming && complete "$out/full"; then
-    echo "bench/industrial.sh: the full run ended before its checkpoint at $at s was kept;" \
-      "run the bench afresh" >&2
-    exit 1
-  fi
+  if $resuming && complete "$out/full"; then ended_early; fi
   keep_checkpoint &
   keeper=$!
+  renice -n 10 -p "$keeper" > /dev/null
 fi
 full_run
 [ -z "$keeper" ] || wait $keeper

@@ -39,7 +39,6 @@ void read_summary(const std::string& path, SceneRun& run) {
   run.name = j.value("scene", Json::object()).value("name", "");
   run.complete = j.value("complete", false);
   run.threads = j.value("threads", run.threads);
-  run.end_time = j.value("end_time_s", 0.0);
   run.simulated = j.value("simulated_time_s", 0.0);
   run.steps = j.value("steps", std::size_t(0));
   const Json& wall = j.at("wall_time_s");

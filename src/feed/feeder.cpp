@@ -178,8 +178,9 @@ bool Feeder::place(State& state, const Candidate& c) {
     const Particles& p = state.particles;
     neighbours_.push_back(p.size() - 1);
     // Those placed since the grid was sorted are checked one by one: past
-    // as many as it holds, they are sorted in. That cuts a one-step feed's
-    // checks by about three; each check still scans that tail.
+    // as many as it holds, they are sorted in, so the unsorted tail stays
+    // no longer than the sorted part. A one-step feed is still quadratic,
+    // by a constant factor less: each check scans that tail.
     if (neighbours_.size() - grid_.gridded > std::max<std::size_t>(kUngriddedMost, grid_.gridded))
       grid_neighbours(p);
     stats_.fed[std::size_t(c.component)].add(to_mass_units(p.mass.back()));
