@@ -129,6 +129,10 @@ if ! $resuming; then
   mkdir -p "$out"
   echo "$end $short" > "$out/bench.args"
   date -u '+%Y-%m-%d %H:%M UTC' > "$out/start.txt"
+  # The commit the bench began at, for the report (HEAD may move while it runs).
+  git describe --always --dirty > "$out/bench.commit" 2>/dev/null || echo unknown > "$out/bench.commit"
+else
+  date -u '+%Y-%m-%d %H:%M UTC' >> "$out/resumed.txt"
 fi
 # The binary the bench began with: a resumed run's steps must be its own.
 binary_sum=$(sha256sum "$bin" | cut -d' ' -f1)

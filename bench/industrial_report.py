@@ -7,7 +7,6 @@ import functools
 import json
 import platform
 import statistics
-import subprocess
 import sys
 from pathlib import Path
 
@@ -46,11 +45,18 @@ def memory_gib():
 
 
 def commit():
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
+    """The commit the bench began at ("-dirty": with uncommitted changes)."""
+    recorded = out / "bench.commit"
+    return recorded.read_text().strip() if recorded.exists() else "unknown"
+
+
+def resumes():
+    """How many times `--resume` took the bench up again; a bench begun
+    before resumed.txt counts the full run's later processes."""
+    log = out / "resumed.txt"
+    if log.exists():
+        return len(log.read_text().splitlines())
+    return len(list(out.glob("full.time.*")))
 
 
 def step_seconds(s):
@@ -129,9 +135,9 @@ def memory_split(empty, runs):
 
 print(f"# ces-sim: the industrial scene ({start})\n")
 print(f"Machine: {cpu_model()}, {cores} cores, {memory_gib():.0f} GiB; {platform.system()} "
-      f"{platform.release()}; commit {commit()}.")
+      f"{platform.release()}; commit {commit()} (where the bench began).")
 print(load_line() + ".")
-resumed = len(list(out.glob("full.time.*")))
+resumed = resumes()
 print(f"Command: bash bench/industrial.sh {end} {short}" +
       (", then bash bench/industrial.sh --resume" if resumed else "") +
       (f" ({resumed} times)" if resumed > 1 else "") + "\n")
