@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "common/path.hpp"
 #include "scene/diagnostics.hpp"
 #include "scene/limits.hpp"
 #include "scene/schema.hpp"
@@ -243,12 +244,6 @@ std::optional<Node> parse_value(const std::string& value, const Mark& mark, Budg
   return node;
 }
 
-// The absolute form of a folder given relative to the working directory
-// ("" is the working directory itself).
-fs::path absolute_folder(const fs::path& folder) {
-  return fs::absolute(folder.empty() ? fs::path(".") : folder).lexically_normal();
-}
-
 }  // namespace
 
 std::optional<Node> load_tree(const std::string& path,
@@ -402,13 +397,13 @@ std::string too_large(const std::filesystem::path& file, std::uintmax_t max_byte
 }
 
 void rebase_paths(Node& root, const std::string& scene_path) {
-  const fs::path scene_dir = absolute_folder(fs::path(scene_path).parent_path());
+  const fs::path scene_dir = absolute_path(fs::path(scene_path).parent_path());
   walk_schema(root, [&](Node& n, const nlohmann::ordered_json* s) {
     if (!s || !n.is_string() || !keyword(*s, "x-path")) return;
     const fs::path written(n.string());
     if (written.is_absolute()) return;
     const fs::path base = n.mark.file == "--set" ? fs::path() : fs::path(n.mark.file).parent_path();
-    const fs::path target = (absolute_folder(base) / written).lexically_normal();
+    const fs::path target = (absolute_path(base) / written).lexically_normal();
     const fs::path relative = target.lexically_relative(scene_dir);
     n.scalar = n.text = (relative.empty() ? target : relative).generic_string();
   });

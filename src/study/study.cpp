@@ -16,11 +16,12 @@
 #include <thread>
 #include <tuple>
 
+#include "common/path.hpp"
+#include "model/model.hpp"
 #include "output/compare.hpp"
 #include "output/files.hpp"
 #include "output/format.hpp"
 #include "output/report_page.hpp"
-#include "model/model.hpp"
 #include "scene/scene.hpp"
 
 namespace ces::study {
@@ -58,10 +59,9 @@ std::vector<std::string> split(const std::string& s, char sep) {
   return out;
 }
 
-// A path as every command of a study names it: absolute, with no '.' or
-// '..' left in it, whatever the folder the command runs in. Links stay:
-// a scene's includes and name come from the path it is given.
-std::string full_path(const fs::path& p) { return fs::absolute(p).lexically_normal().string(); }
+// A path as every command of a study names it: the same whatever the
+// folder the command runs in.
+std::string full_path(const fs::path& p) { return absolute_path(p).string(); }
 
 fs::path case_dir(const Options& o, const Case& c) {
   return o.out_dir / ("case_" + std::to_string(c.index));
