@@ -214,8 +214,8 @@ const Expected kExpectations[] = {
     {"shape_too_many_spheres.yaml", "shape_too_many_spheres.yaml", 8,
      "shapes.chain.spheres: a shape of 1001 spheres, expected at most 1000"},
     {"shape_too_wide.yaml", "shape_too_wide.yaml", 8,
-     "shapes.speck.spheres: a shape 400001 of its smallest sphere's radii across, expected at "
-     "most 10000"},
+     "shapes.speck.spheres: a shape 400001 times its smallest sphere's radius across, expected "
+     "at most 10000 times"},
     {"shape_size_far.yaml", "shape_size_far.yaml", 9,
      "shapes.giant.size: size 1e+300 is 5e+299 times the spheres' bounding diameter, expected "
      "within a factor 10000 of it"},

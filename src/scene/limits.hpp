@@ -34,6 +34,10 @@ inline constexpr std::size_t kShapeSpheres = 1000;
 // this is no particle, and its volume integral (down to a 64th of the
 // smallest radius) loses the small spheres or overflows.
 inline constexpr double kShapeSpan = 1e4;
+// A shape's `size` over its spheres' bounding diameter, or under: further
+// off, its spheres are specks or giants of the size the feed draws, and
+// its particles weigh nothing or more than the balance counts.
+inline constexpr double kShapeScale = 1e4;
 // Materials (their pair table has one entry per ordered pair), and bin
 // tallies: bins of all collectors times materials, 32 bytes each.
 inline constexpr std::size_t kMaterials = 256;

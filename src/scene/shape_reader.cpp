@@ -224,8 +224,8 @@ std::optional<feed::SphereList> ShapeReader::cluster_spheres(const Node& entry) 
   const double span = shape_span(list);
   if (span <= limits::kShapeSpan) return list;
   diags_.error(where, "a shape " + format(span) +
-                          " of its smallest sphere's radii across, expected at most " +
-                          format(limits::kShapeSpan));
+                          " times its smallest sphere's radius across, expected at most " +
+                          format(limits::kShapeSpan) + " times");
   return std::nullopt;
 }
 
@@ -236,13 +236,11 @@ std::optional<feed::SphereList> ShapeReader::cluster_spheres(const Node& entry) 
 std::optional<int> ShapeReader::add_shape(const ParticleShape& shape, const Node* entry,
                                           const std::string& name) {
   const Node* size = entry ? entry->find("size") : nullptr;
-  // A size far from the spheres' own extent makes particles whose spheres
-  // are specks, or giants, of the size the feed draws.
   const double ratio = size ? size->number() / (2.0 * shape.bounding_radius) : 1.0;
-  if (!(ratio <= limits::kShapeSpan && ratio >= 1.0 / limits::kShapeSpan)) {
+  if (!(ratio <= limits::kShapeScale && ratio >= 1.0 / limits::kShapeScale)) {
     diags_.error(*size, "size " + format(size->number()) + " is " + format(ratio) +
                             " times the spheres' bounding diameter, expected within a factor " +
-                            format(limits::kShapeSpan) + " of it");
+                            format(limits::kShapeScale) + " of it");
     return std::nullopt;
   }
   if (size)
