@@ -447,6 +447,13 @@ TEST(Cli, CompareRefusesTablesItDoesNotKnow) {
                  ":1: expected the header collector,bin,from_m,to_m,material,count,mass_kg, "
                  "found 'garbage'");
   fs::copy_file(a / "bins.csv", b / "bins.csv", fs::copy_options::overwrite_existing);
+  std::string products = read_text(a / "products.csv");
+  const std::size_t grade = products.find('\n', products.find('\n') + 1);
+  const std::size_t cell = products.rfind(',', products.rfind(',', grade - 1) - 1) + 1;
+  products.replace(cell, products.find(',', cell) - cell, "pure");
+  std::ofstream(b / "products.csv") << products;
+  expect_refused((b / "products.csv").string() + ":2: grade is not a finite number: 'pure'");
+  fs::copy_file(a / "products.csv", b / "products.csv", fs::copy_options::overwrite_existing);
   std::string crossings = read_text(a / "crossings.csv");
   const std::size_t row = crossings.find('\n') + 1;
   crossings.insert(row, "1,0.1,0,0,0,0,0,0,far,0.001,1e-06,copper,0,tray,0,near\n");

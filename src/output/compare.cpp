@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <limits>
 #include <map>
 #include <stdexcept>
 
@@ -29,10 +28,8 @@ std::ifstream open_table(const std::filesystem::path& file) {
   }
 }
 
-// NaN for a cell that is not a number: an empty product's grade.
-double number(const std::string& s) {
-  return csv::number(s).value_or(std::numeric_limits<double>::quiet_NaN());
-}
+// A cell of a table read_tally_table checked.
+double number(const std::string& s) { return *csv::number(s); }
 
 // The columns that name a row of bins.csv or products.csv: the collector,
 // the bin or product, the material.
@@ -78,7 +75,7 @@ struct CellCheck {
 // A difference line, or empty when the cell agrees.
 std::string check_cell(const std::string& where, const CellCheck& c) {
   const double d = std::abs(c.a - c.b);
-  if (d <= c.tolerance || (std::isnan(c.a) && std::isnan(c.b))) return {};
+  if (d <= c.tolerance) return {};
   return where + " " + c.column + ": " + format_number(c.a) + " vs " + format_number(c.b) +
          " (difference " + format_number(d) + " > tolerance " + format_number(c.tolerance) + ")";
 }
@@ -124,6 +121,16 @@ void compare_tables(const std::filesystem::path& dir_a, const char* file, const 
     }
   }
   r.notes.push_back(std::string(file) + ": " + std::to_string(a.rows.size()) + " rows compared");
+}
+
+// bins.csv or products.csv: every cell but those naming its row a number.
+Table read_tally_table(const std::filesystem::path& file, std::string_view header) {
+  Table t = read_table(file, header);
+  const std::vector<std::size_t> keys = key_columns(t);
+  for (std::size_t i = 0; i < t.rows.size(); ++i)
+    for (std::size_t c = 0; c < t.header.size(); ++c)
+      if (std::find(keys.begin(), keys.end(), c) == keys.end()) t.number(i, c, file);
+  return t;
 }
 
 void compare_landings(const Landings& a, const Landings& b, const CompareOptions& o,
@@ -224,7 +231,8 @@ CompareResult compare_outputs(const std::filesystem::path& a, const std::filesys
   CompareResult r;
   for (const auto& [file, header] :
        {std::pair{"bins.csv", kBinsHeader}, std::pair{"products.csv", kProductsHeader}})
-    compare_tables(a, file, read_table(a / file, header), read_table(b / file, header), options, r);
+    compare_tables(a, file, read_tally_table(a / file, header), read_tally_table(b / file, header),
+                   options, r);
   compare_landings(read_landings(a / "crossings.csv"), read_landings(b / "crossings.csv"), options, r);
   return r;
 }
