@@ -182,12 +182,17 @@ TEST(Cli, BadArgumentsExitTwo) {
 // A mistyped command is named as such, not taken for a scene followed by
 // an unexpected argument; an empty output folder is not the scene's own.
 TEST(Cli, MistakesAreNamedForWhatTheyAre) {
-  const Outcome typo = ces_sim("valdate " + scene("tiny.yaml"));
-  EXPECT_EQ(typo.code, 2);
-  EXPECT_NE(typo.err.find("'valdate' is neither a command (validate, schema, compare, resume, "
-                          "study) nor a scene file"),
-            std::string::npos)
-      << typo.err;
+  // Options before the word (flags, and options with their values) are
+  // passed over; a file of that name would be a scene.
+  for (const std::string before : {"", "--threads 2 ", "--threads=2 -q ", "-o out/x --seed 3 "}) {
+    const Outcome typo = ces_sim(before + "valdate " + scene("tiny.yaml"));
+    EXPECT_EQ(typo.code, 2) << before;
+    EXPECT_NE(typo.err.find("'valdate' is neither a command (validate, schema, compare, resume, "
+                            "study) nor a scene file"),
+              std::string::npos)
+        << before << "\n"
+        << typo.err;
+  }
   for (const std::string& args :
        {scene("tiny.yaml") + " -o ''", "study " + scene("tiny.yaml") + " --vary seed=1,2 -o ''"}) {
     const Outcome empty = ces_sim(args);

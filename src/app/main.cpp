@@ -116,12 +116,25 @@ CLI::Validator number_at_least(double least) {
 const CLI::Validator kFolder(
     [](std::string& text) { return text.empty() ? "got '', expected a folder" : ""; }, "DIR");
 
+// The first word on the command line that is neither an option nor an
+// option's value: the command, or the scene.
+std::string first_word(const CLI::App& app, int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string word = argv[i];
+    if (word == "--") return i + 1 < argc ? argv[i + 1] : "";
+    if (word.empty() || word.front() != '-') return word;
+    if (word.find('=') != std::string::npos) continue;  // --threads=2
+    const CLI::Option* option = app.get_option_no_throw(word);
+    if (option && option->get_items_expected_min() > 0) ++i;  // --threads 2
+  }
+  return "";
+}
+
 // A first word that is neither a command nor a file is a mistyped command
 // more often than a missing scene ("valdate s.yaml"); CLI11 alone would
 // take it as the scene and complain about what follows.
 std::optional<std::string> unknown_command(const CLI::App& app, int argc, char** argv) {
-  if (argc < 2) return std::nullopt;
-  const std::string word = argv[1];
+  const std::string word = first_word(app, argc, argv);
   const bool name_like =
       !word.empty() && word.front() != '-' && word.find_first_of("./\\") == std::string::npos;
   std::error_code ec;
