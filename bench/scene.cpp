@@ -60,7 +60,9 @@ SceneRun run_scene(const std::string& ces_sim, const std::string& scene,
   run.path = scene;
   run.sets = sets;
   run.out_dir = out_dir;
+  // Neither summary of an earlier run is read as this one's.
   std::filesystem::remove(out_dir + "/summary.json");
+  std::filesystem::remove(out_dir + "/partial/summary.json");
   std::vector<std::string> argv = {ces_sim, scene,         "-o", out_dir, "--quiet",
                                    "--threads", std::to_string(threads)};
   for (const std::string& s : sets) argv.insert(argv.end(), {"--set", s});
@@ -69,10 +71,13 @@ SceneRun run_scene(const std::string& ces_sim, const std::string& scene,
   run.process_wall = p.wall;
   run.peak_rss = p.max_rss;
   run.threads = threads;
-  // Exit code 3 (interrupted or failed run) still leaves a summary.json.
+  // Exit code 3 (interrupted or failed run) leaves its summary in partial/.
   if (p.exit_code != 0) run.error = ces_sim + " exited with code " + std::to_string(p.exit_code);
-  if (p.exit_code == 0 || std::filesystem::exists(out_dir + "/summary.json"))
-    read_summary(out_dir + "/summary.json", run);
+  for (const std::string& summary : {out_dir + "/summary.json", out_dir + "/partial/summary.json"})
+    if (std::filesystem::exists(summary)) {
+      read_summary(summary, run);
+      break;
+    }
   return run;
 }
 
