@@ -1,23 +1,6 @@
-// ces-sim: the command line.
-//
-//   ces-sim SCENE [-o DIR] [--unset key.path]... [--set key.path=value]... [--seed N]
-//           [--threads N] [--include-path DIR]... [--quiet]
-//   ces-sim validate SCENE [--unset ...] [--set ...] [--include-path DIR]...
-//   ces-sim schema [--markdown]
-//   ces-sim resume DIR [--threads N] [--quiet]
-//   ces-sim compare DIR_A DIR_B [--tol-count N] [--tol-mass F] [--tol-w1 MM]
-//   ces-sim study SCENE --vary key=v1,v2... [--reference DIR] [-o DIR] [--jobs N]
-//                 [--case K] [--list-cases]
-//   ces-sim --version
-//
-// Exit codes (also in --help):
-//   0  success; compare: the folders agree
-//   1  compare: the folders differ
-//   2  bad input: scene diagnostics (one per line on stderr), bad arguments,
-//      a folder to compare that lacks its tables or holds others
-//   3  the run failed or was interrupted; outputs so far are kept and
-//      summary.json says complete: false and why; or out of memory
-//   4  internal error
+// ces-sim: the command line. Its commands and options are those declared
+// in main() (and study's in add_study_command), its exit codes kExitCodes:
+// both are what --help prints, and what the README documents.
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -51,7 +34,8 @@ constexpr const char* kExitCodes =
     "Exit codes:\n"
     "  0  success; compare: the folders agree\n"
     "  1  compare: the folders differ\n"
-    "  2  bad input (scene diagnostics on stderr, one per line; bad arguments)\n"
+    "  2  bad input (scene diagnostics on stderr, one per line; bad arguments; tables compare\n"
+    "     cannot read; a checkpoint resume refuses)\n"
     "  3  run failed or interrupted (partial outputs kept, summary.json complete: false), or\n"
     "     out of memory\n"
     "  4  internal error\n";
