@@ -20,16 +20,21 @@ def summary(name):
     return json.loads((out / name / "summary.json").read_text())
 
 
-def peak_rss_bytes(name):
-    """GNU time's maximum resident set of the run, the largest of its
-    processes' where it was resumed (NAME.time, NAME.time.2, ...)."""
+def process_peaks(name):
+    """GNU time's maximum resident set of each of the run's processes
+    (NAME.time, then NAME.time.2, ... where it was resumed; a process
+    stopped by a signal leaves none)."""
     peaks = []
     for report in [out / f"{name}.time", *sorted(out.glob(f"{name}.time.*"))]:
         peaks += [1024 * int(line.split(":")[1]) for line in report.read_text().splitlines()
                   if "Maximum resident set size" in line]
     if not peaks:
         raise SystemExit(f"no maximum resident set size in {name}.time")
-    return max(peaks)
+    return peaks
+
+
+def peak_rss_bytes(name):
+    return max(process_peaks(name))
 
 
 def cpu_model():
@@ -103,7 +108,9 @@ def describe(name, title):
           f"{work / stages['solve'] / s['threads'] / 1e6:.1f} M per second per thread")
     print(f"overlap: worst {solver['max_penetration_m'] * 1e3:.3f} mm, {solver['max_penetration_relative']:.2f} of the "
           f"smaller radius; against walls {solver['max_wall_penetration_relative']:.2f}")
-    print(f"peak resident set: {peak_rss_bytes(name) / 2**20:.0f} MiB\n")
+    peaks = process_peaks(name)
+    each = f" (its processes' in turn: {', '.join(f'{p / 2**20:.0f}' for p in peaks)} MiB)" if len(peaks) > 1 else ""
+    print(f"peak resident set: {max(peaks) / 2**20:.0f} MiB{each}\n")
     print("| stage | wall s | share of the step | over solve |")
     print("|---|---|---|---|")
     for k in STAGES:
@@ -163,7 +170,8 @@ def late_pace(name, s):
     stages = s["wall_time_s"]["stages"]
     rate = contact_iterations(rows) / stages["solve"]
     print(f"over the last tenth the solve has {work:.3g} contact-iterations per simulated second: at the "
-          f"run's rate, {work / rate:.0f} s per simulated second for the solve alone\n")
+          f"run's average rate (over the whole run, its loaded periods included), {work / rate:.0f} s per simulated "
+          f"second for the solve alone\n")
 
 
 late_pace("full", full)
@@ -216,6 +224,10 @@ print(f"peak resident set of the scene's process with no particles (one step): {
 print(f"the full run: {(runs[1][2] - empty) / runs[1][0]:.0f} B per particle above it, its contacts included "
       f"({runs[1][0]} particles, {runs[1][1]} contacts)")
 split = memory_split(empty, runs)
-if split:
+if split and min(split) > 0:
     print(f"solved from the {short} s and full runs (peak resident sets, so capacities rounded up by the "
           f"vectors' growth are in them): {split[0]:.0f} B per particle, {split[1]:.0f} B per contact")
+elif split:
+    print(f"the {short} s and full runs do not separate a cost per particle from one per contact (solved, "
+          f"one is negative: {split[0]:.0f} B per particle, {split[1]:.0f} B per contact); the full run's "
+          f"peak also holds what grows with the simulated time, the records of the particles collected")
