@@ -91,6 +91,9 @@ keep_checkpoint() {
     mkdir -p "$out/resume_$threads"
     cp -r "$out/full/partial" "$out/resume_$threads/partial"
   done
+  # The summary the resumes start from (ces-sim removes partial/ when a
+  # run completes): each resume's own stage times are its final less this.
+  cp "$out/resume_1/partial/summary.json" "$out/checkpoint.summary.json"
   touch "$out/resume.ready"
 }
 complete() {  # whether the run in folder $1 completed

@@ -196,6 +196,33 @@ print(f"the full run's checkpoint at {at:g} s resumed to {end} s ({steps} steps;
       f"the two end on the same step: {same}\n")
 
 
+def own_stages(name, start):
+    """A resumed run's stage seconds after its checkpoint: its summary's
+    less that of the checkpoint it started from."""
+    stages = summary(name)["wall_time_s"]["stages"]
+    return {k: stages[k] - start[k] for k in STAGES}
+
+
+# Each resume's own steps, the machine full and otherwise quiet: the
+# step over the solve and the solve's rate there, which the full run's
+# totals blur with its earlier, emptier and perhaps loaded stretches.
+checkpoint = out / "checkpoint.summary.json"
+if checkpoint.exists():
+    start_stages = json.loads(checkpoint.read_text())["wall_time_s"]["stages"]
+    work = contact_iterations([r for r in step_rows("resume_1") if float(r["time_s"]) > at + 1e-9])
+    own = {t: own_stages(f"resume_{t}", start_stages) for t in (1, 2)}
+    print("| stage | 1 thread, s | over solve | 2 threads, s | over solve |")
+    print("|---|---|---|---|---|")
+    for k in [*STAGES, "step (all but output)"]:
+        cells = []
+        for t in (1, 2):
+            v = own[t][k] if k in own[t] else sum(x for s, x in own[t].items() if s != "output")
+            cells += [f"{v:.2f}", f"{v / own[t]['solve']:.3f}"]
+        print(f"| {k} | " + " | ".join(cells) + " |")
+    print(f"\nsolve: {work:.3g} contact-iterations; {work / own[1]['solve'] / 1e6:.1f} M per second on "
+          f"1 thread, {work / own[2]['solve'] / 2 / 1e6:.1f} M per second per thread on 2\n")
+
+
 def median_run(prefix):
     """Of PREFIX_1..3, the run whose step time is the median."""
     names = sorted((f"{prefix}_{k}" for k in (1, 2, 3)), key=lambda n: step_seconds(summary(n)))
