@@ -184,7 +184,8 @@ TEST(Cli, BadArgumentsExitTwo) {
 TEST(Cli, MistakesAreNamedForWhatTheyAre) {
   // Options before the word (flags, and options with their values) are
   // passed over; a file of that name would be a scene.
-  for (const std::string before : {"", "--threads 2 ", "--threads=2 -q ", "-o out/x --seed 3 "}) {
+  for (const std::string before :
+       {"", "--threads 2 ", "--threads=2 -q ", "-o out/x --seed 3 ", "-qo out/x "}) {
     const Outcome typo = ces_sim(before + "valdate " + scene("tiny.yaml"));
     EXPECT_EQ(typo.code, 2) << before;
     EXPECT_NE(typo.err.find("'valdate' is neither a command (validate, schema, compare, resume, "
@@ -192,6 +193,12 @@ TEST(Cli, MistakesAreNamedForWhatTheyAre) {
               std::string::npos)
         << before << "\n"
         << typo.err;
+  }
+  // Words CLI11 reads as option values before a command are not taken for
+  // the command: grouped flags, and the several values of one --set.
+  for (const std::string before : {"-qo out/x ", "--set time.end=1s seed=3 "}) {
+    const Outcome ok = ces_sim(before + "validate " + scene("tiny.yaml"));
+    EXPECT_EQ(ok.code, 0) << before << "\n" << ok.err;
   }
   for (const std::string& args :
        {scene("tiny.yaml") + " -o ''", "study " + scene("tiny.yaml") + " --vary seed=1,2 -o ''"}) {

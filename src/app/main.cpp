@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -100,16 +101,41 @@ CLI::Validator number_at_least(double least) {
 const CLI::Validator kFolder(
     [](std::string& text) { return text.empty() ? "got '', expected a folder" : ""; }, "DIR");
 
+// The option whose value is the word after `word` ("-o", "--threads",
+// "-qo"), or none: a flag, a value written in ("--threads=2", "-odir"),
+// an option CLI11 will refuse.
+const CLI::Option* takes_next(const CLI::App& app, const std::string& word) {
+  if (word.find('=') != std::string::npos) return nullptr;
+  if (word.rfind("--", 0) == 0) {
+    const CLI::Option* option = app.get_option_no_throw(word);
+    return option && option->get_items_expected_min() > 0 ? option : nullptr;
+  }
+  for (std::size_t k = 1; k < word.size(); ++k) {  // "-qo": flags, then perhaps one with a value
+    const CLI::Option* option = app.get_option_no_throw(std::string("-") + word[k]);
+    if (!option) return nullptr;
+    if (option->get_items_expected_min() > 0) return k + 1 == word.size() ? option : nullptr;
+  }
+  return nullptr;
+}
+
 // The first word on the command line that is neither an option nor an
-// option's value: the command, or the scene.
-std::string first_word(const CLI::App& app, int argc, char** argv) {
+// option's value, read as CLI11 reads it: the command, or the scene.
+std::string first_word(const CLI::App& app, const std::vector<std::string>& commands, int argc,
+                       char** argv) {
+  const auto is_command = [&](const char* w) {
+    return std::find(commands.begin(), commands.end(), w) != commands.end();
+  };
   for (int i = 1; i < argc; ++i) {
     const std::string word = argv[i];
     if (word == "--") return i + 1 < argc ? argv[i + 1] : "";
     if (word.empty() || word.front() != '-') return word;
-    if (word.find('=') != std::string::npos) continue;  // --threads=2
-    const CLI::Option* option = app.get_option_no_throw(word);
-    if (option && option->get_items_expected_min() > 0) ++i;  // --threads 2
+    const CLI::Option* option = takes_next(app, word);
+    if (!option) continue;
+    ++i;  // its value
+    // An option of several values (--set) takes every word up to the next
+    // option or command.
+    if (option->get_allow_extra_args())
+      while (i + 1 < argc && argv[i + 1][0] != '-' && !is_command(argv[i + 1])) ++i;
   }
   return "";
 }
@@ -118,16 +144,17 @@ std::string first_word(const CLI::App& app, int argc, char** argv) {
 // more often than a missing scene ("valdate s.yaml"); CLI11 alone would
 // take it as the scene and complain about what follows.
 std::optional<std::string> unknown_command(const CLI::App& app, int argc, char** argv) {
-  const std::string word = first_word(app, argc, argv);
+  std::vector<std::string> commands;
+  for (const CLI::App* command : app.get_subcommands([](const CLI::App*) { return true; }))
+    commands.push_back(command->get_name());
+  const std::string word = first_word(app, commands, argc, argv);
   const bool name_like =
       !word.empty() && word.front() != '-' && word.find_first_of("./\\") == std::string::npos;
   std::error_code ec;
   if (!name_like || std::filesystem::exists(word, ec)) return std::nullopt;
+  if (std::find(commands.begin(), commands.end(), word) != commands.end()) return std::nullopt;
   std::string names;
-  for (const CLI::App* command : app.get_subcommands([](const CLI::App*) { return true; })) {
-    if (command->get_name() == word) return std::nullopt;
-    names += (names.empty() ? "" : ", ") + command->get_name();
-  }
+  for (const std::string& name : commands) names += (names.empty() ? "" : ", ") + name;
   return "'" + word + "' is neither a command (" + names + ") nor a scene file";
 }
 
