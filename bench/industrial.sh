@@ -132,10 +132,9 @@ if ! $resuming; then
   mkdir -p "$out"
   echo "$end $short" > "$out/bench.args"
   date -u '+%Y-%m-%d %H:%M UTC' > "$out/start.txt"
-  # The commit the bench began at, for the report (HEAD may move while it runs).
+  # The checkout's commit when the bench began, for the report (HEAD may
+  # move while it runs; a CES_SIM binary may come from another).
   git describe --always --dirty > "$out/bench.commit" 2>/dev/null || echo unknown > "$out/bench.commit"
-else
-  date -u '+%Y-%m-%d %H:%M UTC' >> "$out/resumed.txt"
 fi
 # The binary the bench began with: a resumed run's steps must be its own.
 binary_sum=$(sha256sum "$bin" | cut -d' ' -f1)
@@ -143,6 +142,7 @@ if $resuming && [ -f "$out/bench.binary" ] && [ "$(cat "$out/bench.binary")" != 
   echo "bench/industrial.sh: $bin is not the binary this bench began with" >&2
   exit 2
 fi
+if $resuming; then date -u '+%Y-%m-%d %H:%M UTC' >> "$out/resumed.txt"; fi
 echo "$binary_sum" > "$out/bench.binary"
 sample_load &
 sampler=$!

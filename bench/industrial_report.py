@@ -20,21 +20,28 @@ def summary(name):
     return json.loads((out / name / "summary.json").read_text())
 
 
+def time_reports(name):
+    """The run's GNU time reports: NAME.time, then NAME.time.2, ... where
+    it was resumed, in the order the processes ran."""
+    later = sorted(out.glob(f"{name}.time.*"), key=lambda f: int(f.suffix[1:]))
+    return [out / f"{name}.time", *later]
+
+
 def process_peaks(name):
-    """GNU time's maximum resident set of each of the run's processes
-    (NAME.time, then NAME.time.2, ... where it was resumed; a process
-    stopped by a signal leaves none)."""
+    """Each of the run's processes' maximum resident set, None for one
+    stopped by a signal (its report is empty)."""
     peaks = []
-    for report in [out / f"{name}.time", *sorted(out.glob(f"{name}.time.*"))]:
-        peaks += [1024 * int(line.split(":")[1]) for line in report.read_text().splitlines()
-                  if "Maximum resident set size" in line]
-    if not peaks:
+    for report in time_reports(name):
+        found = [1024 * int(line.split(":")[1]) for line in report.read_text().splitlines()
+                 if "Maximum resident set size" in line]
+        peaks.append(found[0] if found else None)
+    if not any(peaks):
         raise SystemExit(f"no maximum resident set size in {name}.time")
     return peaks
 
 
 def peak_rss_bytes(name):
-    return max(process_peaks(name))
+    return max(p for p in process_peaks(name) if p)
 
 
 def cpu_model():
@@ -57,11 +64,11 @@ def commit():
 
 def resumes():
     """How many times `--resume` took the bench up again; a bench begun
-    before resumed.txt counts the full run's later processes."""
+    before resumed.txt (or partly before) counts at least the full run's
+    later processes."""
     log = out / "resumed.txt"
-    if log.exists():
-        return len(log.read_text().splitlines())
-    return len(list(out.glob("full.time.*")))
+    logged = len(log.read_text().splitlines()) if log.exists() else 0
+    return max(logged, len(list(out.glob("full.time.*"))))
 
 
 def step_seconds(s):
@@ -109,8 +116,9 @@ def describe(name, title):
     print(f"overlap: worst {solver['max_penetration_m'] * 1e3:.3f} mm, {solver['max_penetration_relative']:.2f} of the "
           f"smaller radius; against walls {solver['max_wall_penetration_relative']:.2f}")
     peaks = process_peaks(name)
-    each = f" (its processes' in turn: {', '.join(f'{p / 2**20:.0f}' for p in peaks)} MiB)" if len(peaks) > 1 else ""
-    print(f"peak resident set: {max(peaks) / 2**20:.0f} MiB{each}\n")
+    listed = ", ".join(f"{p / 2**20:.0f}" if p else "none (stopped by a signal)" for p in peaks)
+    each = f" (its processes' in turn, MiB: {listed})" if len(peaks) > 1 else ""
+    print(f"peak resident set: {peak_rss_bytes(name) / 2**20:.0f} MiB{each}\n")
     print("| stage | wall s | share of the step | over solve |")
     print("|---|---|---|---|")
     for k in STAGES:
@@ -256,5 +264,5 @@ if split and min(split) > 0:
           f"vectors' growth are in them): {split[0]:.0f} B per particle, {split[1]:.0f} B per contact")
 elif split:
     print(f"the {short} s and full runs do not separate a cost per particle from one per contact (solved, "
-          f"one is negative: {split[0]:.0f} B per particle, {split[1]:.0f} B per contact); the full run's "
+          f"one is not positive: {split[0]:.0f} B per particle, {split[1]:.0f} B per contact); the full run's "
           f"peak also holds what grows with the simulated time, the records of the particles collected")

@@ -76,8 +76,9 @@ SceneRun run_scene(const std::string& ces_sim, const std::string& scene,
   for (const std::string& summary : {out_dir + "/summary.json", out_dir + "/partial/summary.json"})
     if (std::filesystem::exists(summary)) {
       read_summary(summary, run);
-      break;
+      return run;
     }
+  if (run.error.empty()) run.error = "no " + out_dir + "/summary.json";
   return run;
 }
 
