@@ -194,12 +194,15 @@ TEST(Cli, MistakesAreNamedForWhatTheyAre) {
         << before << "\n"
         << typo.err;
   }
-  // Words CLI11 reads as option values before a command are not taken for
-  // the command: grouped flags, and the several values of one --set.
-  for (const std::string before : {"-qo out/x ", "--set time.end=1s seed=3 "}) {
+  // Option values before a command are not taken for the command.
+  for (const std::string before : {"-qo out/x ", "--set time.end=1s --set seed=3 "}) {
     const Outcome ok = ces_sim(before + "validate " + scene("tiny.yaml"));
     EXPECT_EQ(ok.code, 0) << before << "\n" << ok.err;
   }
+  // A repeatable option takes one value: the scene after it is the scene.
+  const Outcome set_first = ces_sim("--set time.end=0.01s " + scene("tiny.yaml") + " -q -o " +
+                                    fresh_dir("set_first").string());
+  EXPECT_EQ(set_first.code, 0) << set_first.err;
   for (const std::string& args :
        {scene("tiny.yaml") + " -o ''", "study " + scene("tiny.yaml") + " --vary seed=1,2 -o ''"}) {
     const Outcome empty = ces_sim(args);

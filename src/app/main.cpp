@@ -158,12 +158,17 @@ std::optional<std::string> unknown_command(const CLI::App& app, int argc, char**
   return "'" + word + "' is neither a command (" + names + ") nor a scene file";
 }
 
+// The repeatable options take one value each time they are given: CLI11
+// would otherwise take every word up to the next option, the scene too
+// ("--set k=v scene.yaml").
 void add_scene_options(CLI::App& app, Args& args) {
   app.add_option("--set", args.sets, "Override a scene value before validation: key.path=value")
-      ->type_name("K=V");
+      ->type_name("K=V")
+      ->allow_extra_args(false);
   app.add_option("--unset", args.unsets,
                  "Remove a scene key or list item before the --set values: key.path")
-      ->type_name("K");
+      ->type_name("K")
+      ->allow_extra_args(false);
   app.add_option("--seed", args.seed, "Random seed (wins over the scene's)")
       ->check(whole_number(0));
   app.add_option("--threads", args.threads, "Worker threads")
@@ -171,7 +176,8 @@ void add_scene_options(CLI::App& app, Args& args) {
   app.add_option("--include-path", args.include_paths,
                  "A folder includes may come from besides the scene's own (repeatable)")
       ->type_name("DIR")
-      ->check(CLI::ExistingDirectory);
+      ->check(CLI::ExistingDirectory)
+      ->allow_extra_args(false);
 }
 
 ces::scene::LoadOptions load_options(const Args& args) {
@@ -297,6 +303,7 @@ CLI::App* add_study_command(CLI::App& app, Args& args, StudyArgs& study) {
                   "An axis of the grid: key.path=v1,v2,...; keys joined by ':' vary together "
                   "(contact.model:time.step=dvi:1ms,dem:5us)")
       ->type_name("K=V,...")
+      ->allow_extra_args(false)
       ->required();
   cmd->add_option("--reference", study.options.reference,
                   "Output folder to measure against (default: the finest case: DVI before DEM, "
