@@ -101,41 +101,32 @@ CLI::Validator number_at_least(double least) {
 const CLI::Validator kFolder(
     [](std::string& text) { return text.empty() ? "got '', expected a folder" : ""; }, "DIR");
 
-// The option whose value is the word after `word` ("-o", "--threads",
-// "-qo"), or none: a flag, a value written in ("--threads=2", "-odir"),
-// an option CLI11 will refuse.
-const CLI::Option* takes_next(const CLI::App& app, const std::string& word) {
-  if (word.find('=') != std::string::npos) return nullptr;
+// Whether the word after `word` is its value ("-o", "--threads", "-qo"):
+// not after a flag, a value written in ("--threads=2", "-odir"), or an
+// option CLI11 will refuse.
+bool takes_next(const CLI::App& app, const std::string& word) {
+  if (word.find('=') != std::string::npos) return false;
   if (word.rfind("--", 0) == 0) {
     const CLI::Option* option = app.get_option_no_throw(word);
-    return option && option->get_items_expected_min() > 0 ? option : nullptr;
+    return option && option->get_items_expected_min() > 0;
   }
   for (std::size_t k = 1; k < word.size(); ++k) {  // "-qo": flags, then perhaps one with a value
     const CLI::Option* option = app.get_option_no_throw(std::string("-") + word[k]);
-    if (!option) return nullptr;
-    if (option->get_items_expected_min() > 0) return k + 1 == word.size() ? option : nullptr;
+    if (!option) return false;
+    if (option->get_items_expected_min() > 0) return k + 1 == word.size();
   }
-  return nullptr;
+  return false;
 }
 
 // The first word on the command line that is neither an option nor an
-// option's value, read as CLI11 reads it: the command, or the scene.
-std::string first_word(const CLI::App& app, const std::vector<std::string>& commands, int argc,
-                       char** argv) {
-  const auto is_command = [&](const char* w) {
-    return std::find(commands.begin(), commands.end(), w) != commands.end();
-  };
+// option's value, read as CLI11 reads it: the command, or the scene. (Every
+// option takes at most one value: add_scene_options.)
+std::string first_word(const CLI::App& app, int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string word = argv[i];
     if (word == "--") return i + 1 < argc ? argv[i + 1] : "";
     if (word.empty() || word.front() != '-') return word;
-    const CLI::Option* option = takes_next(app, word);
-    if (!option) continue;
-    ++i;  // its value
-    // An option of several values (--set) takes every word up to the next
-    // option or command.
-    if (option->get_allow_extra_args())
-      while (i + 1 < argc && argv[i + 1][0] != '-' && !is_command(argv[i + 1])) ++i;
+    if (takes_next(app, word)) ++i;  // its value
   }
   return "";
 }
@@ -147,7 +138,7 @@ std::optional<std::string> unknown_command(const CLI::App& app, int argc, char**
   std::vector<std::string> commands;
   for (const CLI::App* command : app.get_subcommands([](const CLI::App*) { return true; }))
     commands.push_back(command->get_name());
-  const std::string word = first_word(app, commands, argc, argv);
+  const std::string word = first_word(app, argc, argv);
   const bool name_like =
       !word.empty() && word.front() != '-' && word.find_first_of("./\\") == std::string::npos;
   std::error_code ec;
