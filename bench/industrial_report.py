@@ -265,4 +265,5 @@ if split and min(split) > 0:
 elif split:
     print(f"the {short} s and full runs do not separate a cost per particle from one per contact (solved, "
           f"one is not positive: {split[0]:.0f} B per particle, {split[1]:.0f} B per contact); the full run's "
-          f"peak also holds what grows with the simulated time, the records of the particles collected")
+          f"peak also holds what neither count measures: the vectors' spare capacity, the allocator's free "
+          f"lists, and, in a binary that kept them in memory, the records of the particles collected")

@@ -14,17 +14,13 @@ bool contains(const geo::Aabb& box, const Vec3& x) {
   return (x.array() >= box.min.array()).all() && (x.array() <= box.max.array()).all();
 }
 
-// Sorts the records from `first` on (this step's) by (time, id) and merges
-// them into the sorted ones before: the whole list stays in that order.
+// A step's records in (time, id) order: the order the particles are
+// visited in depends on the state's layout, this one only on the run.
 template <class Record>
-void merge_by_time_and_id(std::vector<Record>& records, std::size_t first) {
-  auto before = [](const Record& a, const Record& b) {
+void sort_by_time_and_id(std::vector<Record>& records) {
+  std::sort(records.begin(), records.end(), [](const Record& a, const Record& b) {
     return a.time != b.time ? a.time < b.time : a.id < b.id;
-  };
-  const auto mid = records.begin() + std::ptrdiff_t(first);
-  std::sort(mid, records.end(), before);
-  if (mid != records.begin() && mid != records.end() && before(*mid, *(mid - 1)))
-    std::inplace_merge(records.begin(), mid, records.end(), before);
+  });
 }
 
 // Bin index of `along`, or -1 outside [from, to).
@@ -80,12 +76,13 @@ double Collection::diameter(const Particles& p, std::size_t i) const {
 }
 
 void Collection::collect(double t_end, double h, Particles& p) {
-  const std::size_t crossed = crossings_.size(), lost = losses_.size();
+  crossings_.clear();
+  losses_.clear();
   // Backwards: swap_remove moves the last particle, already visited, into i.
   for (std::size_t i = p.size(); i-- > 0;)
     if (leaves(p, i, t_end, h)) p.swap_remove(i);
-  merge_by_time_and_id(crossings_, crossed);
-  merge_by_time_and_id(losses_, lost);
+  sort_by_time_and_id(crossings_);
+  sort_by_time_and_id(losses_);
 }
 
 bool Collection::leaves(const Particles& p, std::size_t i, double t_end, double h) {
@@ -169,8 +166,6 @@ void Collection::save(ByteWriter& out) const {
   for (const CollectorTallies& t : tallies_)
     for (const auto* v : {&t.bins, &t.products, &t.outside, &t.total}) out.values(*v);
   for (const std::vector<Tally>& l : lost_) out.values(l);
-  out.values(crossings_);
-  out.values(losses_);
 }
 
 void Collection::load(ByteReader& in) {
@@ -181,8 +176,8 @@ void Collection::load(ByteReader& in) {
       if (v->size() != expected) throw CorruptData("a collector's bins or products have changed");
     }
   for (std::vector<Tally>& l : lost_) in.values(l);
-  in.values(crossings_);
-  in.values(losses_);
+  crossings_.clear();
+  losses_.clear();
 }
 
 }  // namespace ces::collect

@@ -1,8 +1,10 @@
 // Where particles leave a run: the collect stage, which takes out of the
 // state the particles that crossed a collector plane this step (collected)
 // and those that left the domain or whose state stopped being finite (lost,
-// with the reason). Keeps their records, in (time, id) order, and the exact
-// tallies behind bins.csv, products.csv and the summary's balance.
+// with the reason). Keeps the exact tallies behind bins.csv, products.csv and
+// the summary's balance over the whole run, and the records of the last
+// step only: a long run collects millions of particles, so their records
+// go to the disk as they come (output::CollectedLog), not into memory.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -76,11 +78,12 @@ class Collection {
   Tally collected_total(std::size_t m) const;
   Tally lost_total(std::size_t m) const;
 
-  // In (time, id) order.
+  // The last step's records, in (time, id) order.
   const std::vector<Crossing>& crossings() const { return crossings_; }
   const std::vector<Loss>& losses() const { return losses_; }
 
-  // The tallies and records, for checkpoints.
+  // The tallies, for checkpoints (a checkpoint is taken between steps, so
+  // the records are already written).
   void save(ByteWriter& out) const;
   void load(ByteReader& in);
 
@@ -97,8 +100,8 @@ class Collection {
   std::vector<Vec3> axes_;  // unit bin axis per collector
   std::vector<CollectorTallies> tallies_;
   std::array<std::vector<Tally>, kLossReasons.size()> lost_;  // per material
-  std::vector<Crossing> crossings_;
-  std::vector<Loss> losses_;
+  std::vector<Crossing> crossings_;                           // the last step's
+  std::vector<Loss> losses_;                                  // the last step's
 };
 
 }  // namespace ces::collect

@@ -109,8 +109,8 @@ std::string products_csv(const Simulation& sim, const std::vector<ProductResult>
   return text;
 }
 
-std::string crossings_csv(const Simulation& sim, const Collection& c) {
-  std::string text = std::string(kCrossingsHeader) + '\n';
+std::string crossing_rows(const Simulation& sim, const Collection& c) {
+  std::string text;
   CsvWriter row(text);
   for (const Crossing& k : c.crossings()) {
     const Collector& col = sim.collectors[std::size_t(k.collector)];
@@ -124,9 +124,8 @@ std::string crossings_csv(const Simulation& sim, const Collection& c) {
   return text;
 }
 
-std::string lost_csv(const Simulation& sim, const Collection& c) {
-  std::string text =
-      "id,time_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,diameter_m,mass_kg,material,reason\n";
+std::string lost_rows(const Simulation& sim, const Collection& c) {
+  std::string text;
   CsvWriter row(text);
   for (const Loss& l : c.losses()) {
     row << l.id << l.time;

@@ -54,12 +54,15 @@ inline constexpr std::string_view kProductsHeader =
 inline constexpr std::string_view kCrossingsHeader =
     "id,time_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,along_m,diameter_m,mass_kg,material,charge_c,"
     "collector,bin,product";
+inline constexpr std::string_view kLostHeader =
+    "id,time_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,diameter_m,mass_kg,material,reason";
 
 std::string bins_csv(const Simulation& sim, const Collection& c, const std::vector<int>& materials);
 std::string products_csv(const Simulation& sim, const std::vector<ProductResult>& products,
                          const std::vector<int>& materials);
-// Rows in the order of Collection::crossings() / losses(): (time, id).
-std::string crossings_csv(const Simulation& sim, const Collection& c);
-std::string lost_csv(const Simulation& sim, const Collection& c);
+// The last step's rows of crossings.csv and lost.csv (no header), in the
+// order of Collection::crossings() / losses(): (time, id).
+std::string crossing_rows(const Simulation& sim, const Collection& c);
+std::string lost_rows(const Simulation& sim, const Collection& c);
 
 }  // namespace ces::output

@@ -19,6 +19,7 @@
 #include <utility>
 
 #include "common/clock.hpp"
+#include "output/collected_log.hpp"
 #include "output/distribution_svg.hpp"
 #include "output/energy.hpp"
 #include "output/field_picture.hpp"
@@ -120,6 +121,7 @@ class Observers : public StepObserver {
       : sim_(sim),
         steps_(sim.output.steps_csv ? dir / "steps.csv" : fs::path(),
                sim.model->solver.max_iterations, start),
+        collected_(sim, dir, start),
         trajectories_(dir, sim, shape_sizes(sim), start),
         energy_(sim, world.state()),
         section_(sim) {}
@@ -134,6 +136,7 @@ class Observers : public StepObserver {
                    output::rayleigh_warning(sim_.model->step, s.rayleigh_time, 0).c_str());
     }
     steps_.record(s);
+    if (const collect::Collection* c = world.collection()) collected_.record(*c);
     trajectories_.observe(world.state());
     section_.observe(world.state());
   }
@@ -144,10 +147,12 @@ class Observers : public StepObserver {
   }
   void close() {
     steps_.close();
+    collected_.close();
     trajectories_.close();
   }
   void save(ByteWriter& out) {
     steps_.save(out);
+    collected_.save(out);
     trajectories_.save(out);
     energy_.save(out);
     section_.save(out);
@@ -155,6 +160,7 @@ class Observers : public StepObserver {
   }
   void load(ByteReader& in) {
     steps_.load(in);
+    collected_.load(in);
     trajectories_.load(in);
     energy_.load(in);
     section_.load(in);
@@ -174,6 +180,7 @@ class Observers : public StepObserver {
  private:
   const Simulation& sim_;
   output::StepLog steps_;
+  output::CollectedLog collected_;
   output::TrajectoryWriter trajectories_;
   output::EnergyLedger energy_;
   output::CrossSection section_;
@@ -402,8 +409,6 @@ void Runner::write_outputs() {
     output::write_file_atomic(dir_ / "bins.csv", output::bins_csv(sim_, c, r.materials));
     output::write_file_atomic(dir_ / "products.csv",
                               output::products_csv(sim_, r.products, r.materials));
-    output::write_file_atomic(dir_ / "crossings.csv", output::crossings_csv(sim_, c));
-    output::write_file_atomic(dir_ / "lost.csv", output::lost_csv(sim_, c));
     if (sim_.output.distribution_svg) {
       distribution = output::distribution_svg(sim_, c, r.materials);
       output::write_file_atomic(dir_ / "distribution.svg", distribution);
