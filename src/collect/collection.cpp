@@ -71,10 +71,6 @@ Tally Collection::lost_total(std::size_t m) const {
   return sum;
 }
 
-double Collection::diameter(const Particles& p, std::size_t i) const {
-  return p.scale[i] * shape_size_[std::size_t(p.shape[i])];
-}
-
 void Collection::collect(double t_end, double h, Particles& p) {
   crossings_.clear();
   losses_.clear();
@@ -124,7 +120,7 @@ bool Collection::try_collect(const Particles& p, std::size_t i, double t_end, do
   k.position = x0 + hit_fraction * travel;
   k.velocity = p.velocity[i];
   k.along = axes_[std::size_t(hit)].dot(k.position);
-  k.diameter = diameter(p, i);
+  k.diameter = particle_diameter(shape_size_, p, i);
   k.mass = p.mass[i];
   k.charge = p.charge[i];
   k.material = p.material[i];
@@ -154,7 +150,7 @@ void Collection::lose(const Particles& p, std::size_t i, double t_end, LossReaso
   l.time = t_end;
   l.position = p.position[i];
   l.velocity = p.velocity[i];
-  l.diameter = diameter(p, i);
+  l.diameter = particle_diameter(shape_size_, p, i);
   l.mass = p.mass[i];
   l.material = p.material[i];
   l.reason = reason;

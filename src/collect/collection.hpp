@@ -70,7 +70,6 @@ class Collection {
   // it collects or loses from `particles`.
   void collect(double t_end, double h, Particles& particles);
 
-  double diameter(const Particles& p, std::size_t i) const;
   std::size_t material_count() const { return materials_; }
   const std::vector<CollectorTallies>& collectors() const { return tallies_; }
   const std::vector<Tally>& lost(LossReason r) const { return lost_[std::size_t(r)]; }

@@ -60,6 +60,13 @@ inline double bounding_radius(const Model& model, const Particles& p, std::size_
   return model.shapes[std::size_t(p.shape[i])].bounding_radius * p.scale[i];
 }
 
+// Particle i's size as the outputs give it: shape_size[s] is the diameter
+// of shape s at scale 1 (shape_sizes, spec/simulation.hpp).
+inline double particle_diameter(const std::vector<double>& shape_size, const Particles& p,
+                                std::size_t i) {
+  return p.scale[i] * shape_size[std::size_t(p.shape[i])];
+}
+
 // Every per-particle array, listed once for the operations on all of them.
 inline constexpr auto kParticleArrays = std::tuple{
     &Particles::id,       &Particles::shape,    &Particles::scale,       &Particles::material,

@@ -178,10 +178,6 @@ void TrajectoryWriter::sort_by_id(const Particles& p) {
             [&](std::size_t a, std::size_t b) { return p.id[a] < p.id[b]; });
 }
 
-double TrajectoryWriter::diameter(const Particles& p, std::size_t i) const {
-  return p.scale[i] * shape_size_[std::size_t(p.shape[i])];
-}
-
 void TrajectoryWriter::write_vtk(const State& state) {
   const std::filesystem::path folder = dir_ / "trajectories";
   const std::size_t frame = frame_times_.size();
@@ -199,7 +195,7 @@ std::string TrajectoryWriter::particles_vtp(const State& state) const {
   const std::vector<std::size_t>& o = order_;
   constexpr VtkSection point = VtkSection::PointData;
   std::vector<double> diameters;
-  for (const std::size_t i : o) diameters.push_back(diameter(p, i));
+  for (const std::size_t i : o) diameters.push_back(particle_diameter(shape_size_, p, i));
   VtpFile f(o.size());
   f.add(VtkSection::Field, "TimeValue", 1, std::vector<double>{state.time});
   f.add_strings(VtkSection::Field, "material_names", material_names_);
@@ -310,12 +306,12 @@ void TrajectoryWriter::append_csv(const State& state) {
   CsvWriter row(text_);
   for (const std::size_t i : order_) {
     row << state.time << p.id[i] << p.position[i].x() << p.position[i].y() << p.position[i].z()
-        << p.velocity[i].x() << p.velocity[i].y() << p.velocity[i].z() << diameter(p, i)
-        << material_names_[std::size_t(p.material[i])] << shape_names_[std::size_t(p.shape[i])]
-        << p.charge[i]
-        << p.orientation[i].w() << p.orientation[i].x() << p.orientation[i].y()
-        << p.orientation[i].z() << p.angular_velocity[i].x() << p.angular_velocity[i].y()
-        << p.angular_velocity[i].z() << p.birth[i];
+        << p.velocity[i].x() << p.velocity[i].y() << p.velocity[i].z()
+        << particle_diameter(shape_size_, p, i) << material_names_[std::size_t(p.material[i])]
+        << shape_names_[std::size_t(p.shape[i])] << p.charge[i] << p.orientation[i].w()
+        << p.orientation[i].x() << p.orientation[i].y() << p.orientation[i].z()
+        << p.angular_velocity[i].x() << p.angular_velocity[i].y() << p.angular_velocity[i].z()
+        << p.birth[i];
     row.end_row();
   }
   csv_.write(text_);

@@ -56,7 +56,6 @@ class TrajectoryWriter {
   // The .vtp files of a frame, relative to trajectories/.
   std::vector<std::string> frame_files(std::size_t frame) const;
   void append_csv(const State& state);
-  double diameter(const Particles& p, std::size_t i) const;
   bool has_static_machine() const { return !static_bodies_.empty() || !sim_->electrodes.empty(); }
 
   std::filesystem::path dir_;
