@@ -60,9 +60,11 @@ SceneRun run_scene(const std::string& ces_sim, const std::string& scene,
   run.path = scene;
   run.sets = sets;
   run.out_dir = out_dir;
-  // Neither summary of an earlier run is read as this one's.
-  std::filesystem::remove(out_dir + "/summary.json");
-  std::filesystem::remove(out_dir + "/partial/summary.json");
+  // Where a complete run leaves its summary, then where an interrupted or
+  // failed one (exit code 3) does. Neither of an earlier run is read as
+  // this one's.
+  const std::string summaries[] = {out_dir + "/summary.json", out_dir + "/partial/summary.json"};
+  for (const std::string& summary : summaries) std::filesystem::remove(summary);
   std::vector<std::string> argv = {ces_sim, scene,         "-o", out_dir, "--quiet",
                                    "--threads", std::to_string(threads)};
   for (const std::string& s : sets) argv.insert(argv.end(), {"--set", s});
@@ -71,14 +73,13 @@ SceneRun run_scene(const std::string& ces_sim, const std::string& scene,
   run.process_wall = p.wall;
   run.peak_rss = p.max_rss;
   run.threads = threads;
-  // Exit code 3 (interrupted or failed run) leaves its summary in partial/.
   if (p.exit_code != 0) run.error = ces_sim + " exited with code " + std::to_string(p.exit_code);
-  for (const std::string& summary : {out_dir + "/summary.json", out_dir + "/partial/summary.json"})
+  for (const std::string& summary : summaries)
     if (std::filesystem::exists(summary)) {
       read_summary(summary, run);
       return run;
     }
-  if (run.error.empty()) run.error = "no " + out_dir + "/summary.json";
+  if (run.error.empty()) run.error = "no " + summaries[0];
   return run;
 }
 
