@@ -117,8 +117,6 @@ struct ProcessResult {
 };
 ProcessResult run_process(const std::vector<std::string>& argv, bool capture);
 std::string self_exe();
-// Reads a "Vm...:   123 kB" line of /proc/self/status, in bytes.
-double proc_status_bytes(const char* key);
 
 // ---- results and their outputs (output.cpp) --------------------------------
 

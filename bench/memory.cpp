@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "bench.hpp"
+#include "common/process.hpp"
 
 namespace bench {
 
@@ -19,12 +20,12 @@ constexpr int kProbeIterations = 5;  // memory does not depend on it
 }  // namespace
 
 int run_memory_probe(std::size_t n, bool packed, int threads) {
-  const double base = proc_status_bytes("VmRSS");
+  const double base = ces::resident_bytes();
   ces::World w(bed_model(kProbeIterations, threads));
   fill_bed(w, n, 0.001, packed ? 1.0 : 1.5);
   std::size_t contacts = 0;
   for (int s = 0; s < kProbeSteps; ++s) contacts = w.step().contacts;
-  std::printf("%zu %zu %.0f %.0f\n", n, contacts, base, proc_status_bytes("VmHWM"));
+  std::printf("%zu %zu %.0f %.0f\n", n, contacts, base, ces::peak_resident_bytes());
   return 0;
 }
 

@@ -6,21 +6,12 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 
 #include "bench.hpp"
 
 namespace bench {
 
 std::string self_exe() { return std::filesystem::read_symlink("/proc/self/exe").string(); }
-
-double proc_status_bytes(const char* key) {
-  std::ifstream in("/proc/self/status");
-  const std::string prefix = std::string(key) + ":";
-  for (std::string line; std::getline(in, line);)
-    if (line.rfind(prefix, 0) == 0) return 1024.0 * std::stod(line.substr(prefix.size()));  // kB
-  return 0;
-}
 
 namespace {
 

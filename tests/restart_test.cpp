@@ -105,6 +105,9 @@ void expect_wall_of_every_process(const nlohmann::json& killed, const nlohmann::
   EXPECT_GT(wall["total"].get<double>(), killed["wall_time_s"]["total"].get<double>());
   EXPECT_GE(wall["stages"]["output"].get<double>(),
             killed["wall_time_s"]["stages"]["output"].get<double>());
+  // And its peak memory is the largest of its processes'.
+  EXPECT_GE(resumed["peak_memory_mib"].get<double>(), killed["peak_memory_mib"].get<double>());
+  EXPECT_GT(killed["peak_memory_mib"].get<double>(), 0.0);
 }
 
 // The run, whole in `whole`, and in `killed` killed at a random moment

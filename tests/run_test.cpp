@@ -18,12 +18,13 @@
 #include <limits>
 #include <tuple>
 
-#include "sim/world.hpp"
-#include "feed/feeder.hpp"
 #include "collect/collection.hpp"
+#include "common/process.hpp"
 #include "common/tally.hpp"
+#include "feed/feeder.hpp"
 #include "output/compare.hpp"
 #include "output/files.hpp"
+#include "sim/world.hpp"
 
 namespace ces {
 namespace {
@@ -392,6 +393,21 @@ TEST(RunBalance, FedEqualsCollectedPlusLostPlusActiveExactly) {
   EXPECT_TRUE(s["complete"].get<bool>());
   EXPECT_EQ(s["steps"].get<int>(), 150);
   EXPECT_EQ(s["seed"].get<int>(), 3);
+}
+
+// summary.json's peak memory is this process's peak resident set while it
+// ran: no less than what the process held before the run, no more than
+// its peak after it.
+TEST(RunSummary, PeakMemoryIsTheProcessPeakDuringTheRun) {
+  const fs::path dir = fresh_dir("peak_memory");
+  const double before = resident_bytes();
+  const RunResult r = run(small_run(dir), {.out_dir = "", .progress = false, .quiet = true});
+  const double after = peak_resident_bytes();
+  ASSERT_TRUE(r.complete) << r.reason;
+  ASSERT_GT(before, 0.0);  // Linux: /proc/self/status says
+  const double peak = read_json(dir / "summary.json")["peak_memory_mib"].get<double>() * (1 << 20);
+  EXPECT_GE(peak, before);
+  EXPECT_LE(peak, after);
 }
 
 // A particle's mass in the exact tally: as llround gives it below 9.2 kg,

@@ -315,6 +315,7 @@ std::string summary_json(const RunRecord& r) {
             {"steps", r.steps},
             {"simulated_time_s", r.time},
             {"wall_time_s", wall_json(r)},
+            {"peak_memory_mib", r.peak_memory / double(1 << 20)},
             {"balance", balance_json(r)},
             {"collectors", collectors_json(r)},
             {"solver", solver_json(r)},
@@ -334,8 +335,9 @@ void print_report(const RunRecord& r, std::FILE* out) {
   std::fprintf(out, "ces-sim %s: %s, seed %llu, %d thread%s\n", CES_VERSION, r.sim->name.c_str(),
                (unsigned long long)r.sim->seed, r.threads, r.threads == 1 ? "" : "s");
   const std::string status = r.complete ? "complete" : "INCOMPLETE (" + r.reason + ")";
-  std::fprintf(out, "%s: %llu steps, %.4g s simulated in %.3g s wall\n", status.c_str(),
-               (unsigned long long)r.steps, r.time, r.wall);
+  std::fprintf(out, "%s: %llu steps, %.4g s simulated in %.3g s wall, peak memory %.0f MiB\n",
+               status.c_str(), (unsigned long long)r.steps, r.time, r.wall,
+               r.peak_memory / double(1 << 20));
   std::fprintf(out, "particles: fed %s, collected %s, lost %s, in flight %s\n",
                count_and_mass(sum(r.fed)).c_str(), count_and_mass(sum(f.collected)).c_str(),
                count_and_mass(sum(f.lost)).c_str(), count_and_mass(sum(r.active)).c_str());

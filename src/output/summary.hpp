@@ -36,6 +36,7 @@ struct RunRecord {
   bool threads_adaptive = false;  // chosen step by step (sim/threads.hpp)
   std::vector<std::uint64_t> steps_at_threads;  // index = thread count
   double wall = 0.0;  // s
+  double peak_memory = 0.0;  // bytes: the largest peak resident set of the run's processes
   SolverSummary solver;
   EnergyBalance energy;
   std::vector<FeedRecord> feeds;

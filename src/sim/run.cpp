@@ -19,6 +19,7 @@
 #include <utility>
 
 #include "common/clock.hpp"
+#include "common/process.hpp"
 #include "output/collected_log.hpp"
 #include "output/distribution_svg.hpp"
 #include "output/energy.hpp"
@@ -211,6 +212,8 @@ class Runner {
   void write_report(const output::RunRecord& r, const std::string& distribution_svg);
   std::vector<std::string> files() const;
   double wall() const { return wall_before_ + seconds_since(start_); }
+  // The largest peak resident set of the run's processes so far (bytes).
+  double peak_memory() const { return std::max(peak_before_, peak_resident_bytes()); }
   output::RunRecord record() const;
   void tally_feeds(output::RunRecord& r) const;
   void tally_active(output::RunRecord& r) const;
@@ -227,6 +230,7 @@ class Runner {
   std::uint64_t checkpoint_steps_;  // steps between checkpoints; 0: none
   double output_seconds_ = 0.0;  // the output stage's, and the writing before and after the steps
   double wall_before_ = 0.0;     // the wall time of a resumed run's earlier processes
+  double peak_before_ = 0.0;     // bytes: their largest peak resident set
   double watched_at_ = 0.0;      // wall time of the caller's last on_progress
   int stop_signal_ = 0;          // the signal that stopped the steps
   bool complete_ = false;
@@ -279,6 +283,7 @@ void Runner::read_checkpoint_body() {
   observers_.load(in);
   in.value(wall_before_);
   in.value(output_seconds_);
+  in.value(peak_before_);
   if (!in.at_end()) throw CorruptData("the checkpoint holds more than this scene's run");
 }
 
@@ -373,6 +378,7 @@ void Runner::checkpoint() {
   // every process it took.
   body.value(wall());
   body.value(output_seconds_);
+  body.value(peak_memory());
   write_checkpoint(dir_ / "checkpoint.bin",
                    {sim_.scene_path, sim_.scene_hash, sim_.resolved_yaml, body.bytes()});
   output::write_file_atomic(dir_ / "summary.json", output::summary_json(record()));
@@ -491,6 +497,7 @@ output::RunRecord Runner::record() const {
   r.threads_adaptive = threads_.adaptive();
   r.steps_at_threads = threads_.steps_at();
   r.wall = wall();
+  r.peak_memory = peak_memory();
   r.solver = observers_.solver();
   // The steps' own, complete only once each step returned, and the writing
   // outside them.
