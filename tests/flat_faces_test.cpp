@@ -47,6 +47,31 @@ TEST(FlatFace, APlaneOfEqualSpheresIsAPlateAndNothingElseIs) {
   EXPECT_TRUE(is_flat({Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)}, {1, 1, 1}));
 }
 
+// covers passes over a point beyond every corner before it tests the
+// edges; its margin keeps the billionth of an edge the edges' test admits
+// past the rim, also past a very sharp corner, where that billionth
+// reaches farthest: a triangle's tip of a hundredth of a degree.
+TEST(FlatFace, TheEarlyOutKeepsWhatTheEdgesAdmitPastASharpCorner) {
+  const double half = 0.5 * 0.01 * kPi / 180.0;  // half the tip's angle
+  const double length = 10.0, width = length * std::tan(half);
+  const ParticleShape shape = make_particle_shape(
+      {Vec3(length, 0, 0), Vec3(0, width, 0), Vec3(0, -width, 0)}, {1e-4, 1e-4, 1e-4});
+  const FlatFace& f = shape.face;
+  ASSERT_TRUE(f.flat());
+  const auto covers = [&](const Vec3& x) {
+    const Vec3 d = x - f.origin;
+    return f.covers(d.dot(f.x_axis), d.dot(f.y_axis));
+  };
+  // Past the tip along its bisector, a point is outside both long edges by
+  // its distance times sin(half), and the edges admit a billionth of
+  // their length: past the tip that is about 6e-5 of a length.
+  const Vec3 tip = shape.centers[0];
+  const Vec3 out = (tip - 0.5 * (shape.centers[1] + shape.centers[2])).normalized();
+  const double admitted = 1e-9 * (length / std::cos(half)) / std::sin(half);
+  EXPECT_TRUE(covers(tip + 0.5 * admitted * out));
+  EXPECT_FALSE(covers(tip + 2.0 * admitted * out));
+}
+
 // A world of frictionless rafts on a frictionless ground, the solve
 // converged, with flat faces or sphere on sphere, reduced to four.
 std::shared_ptr<Model> raft_model(bool flat) {

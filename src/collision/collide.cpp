@@ -58,22 +58,43 @@ PlateFrame plate_frame(const FlatFace& face, const Mat3& turn, const Vec3& posit
           position + scale * (turn * face.origin)};
 }
 
-// A flake's plate this step (FlatFace): its spheres' centres in the world,
-// and its frame (PlateFrame). Inactive for a shape that is not flat, or
-// where the scene keeps sphere on sphere.
+// A plate's hull edges in the world: made once per pair, and read by each
+// of its rim queries and each pair of the two rims' edges.
+struct RimEdges {
+  std::vector<Vec3> start, edge;
+  std::vector<double> squared;  // the edge's squared length
+
+  void make(const FlatFace& face, const Vec3* centres) {
+    const std::vector<std::uint32_t>& k = face.corners;
+    start.resize(k.size());
+    edge.resize(k.size());
+    squared.resize(k.size());
+    for (std::size_t e = 0; e < k.size(); ++e) {
+      start[e] = centres[k[e]];
+      edge[e] = centres[k[next_corner(e, k.size())]] - start[e];
+      squared[e] = edge[e].squaredNorm();
+    }
+  }
+  std::size_t size() const { return start.size(); }
+};
+
+// A flake's plate this step (FlatFace): its frame (PlateFrame) and its rim
+// in the world (`edges`, filled from its spheres' centres). Inactive for a
+// shape that is not flat, or where the scene keeps sphere on sphere.
 struct Plate : PlateFrame {
   const FlatFace* face = nullptr;
-  const Vec3* centres = nullptr;  // the flake's spheres in the world
+  const RimEdges* rim = nullptr;
   Vec3 position;
   double scale = 1.0, radius = 0.0, reach = 0.0;
 
   Plate() = default;
   Plate(const ParticleShape& s, const PlateFrame& frame, const Vec3& position, double scale,
-        const Vec3* centres) {
+        const Vec3* centres, RimEdges& edges) {
     if (!s.face.flat()) return;
     PlateFrame::operator=(frame);
     face = &s.face;
-    this->centres = centres;
+    edges.make(s.face, centres);
+    rim = &edges;
     this->position = position;
     this->scale = scale;
     radius = scale * s.radii[0];
@@ -87,14 +108,13 @@ struct Plate : PlateFrame {
   }
   // The point of the hull's edges nearest c (the first of equals).
   Vec3 nearest_on_rim(const Vec3& c) const {
-    const std::vector<std::uint32_t>& k = face->corners;
-    Vec3 best = centres[k[0]];
+    Vec3 best = rim->start[0];
     double least = std::numeric_limits<double>::infinity();
-    for (std::size_t e = 0; e < k.size(); ++e) {
-      const Vec3& a = centres[k[e]];
-      const Vec3 edge = centres[k[next_corner(e, k.size())]] - a;
+    for (std::size_t e = 0; e < rim->size(); ++e) {
+      const Vec3& a = rim->start[e];
+      const Vec3& edge = rim->edge[e];
       // Clamped to the edge before dividing: c is beside most edges' ends.
-      const double along = (c - a).dot(edge), squared_edge = edge.squaredNorm();
+      const double along = (c - a).dot(edge), squared_edge = rim->squared[e];
       const double t = along <= 0.0            ? 0.0
                        : along >= squared_edge ? 1.0
                                                : along / squared_edge;
@@ -164,20 +184,19 @@ void spheres_on_plate(const Vec3* centres, const ParticleShape& s, double scale,
 // and so are those of parallel edges.
 void rims_crossing(const Plate& a, const Plate& b, ContactKey key, double envelope,
                    std::vector<Candidate>& out) {
-  const std::vector<std::uint32_t>& ka = a.face->corners;
-  const std::vector<std::uint32_t>& kb = b.face->corners;
+  const RimEdges &ea = *a.rim, &eb = *b.rim;
   const double far = a.reach + b.reach + envelope;
   if ((a.position - b.position).squaredNorm() > far * far) return;
-  for (std::size_t i = 0; i < ka.size(); ++i) {
-    const Vec3& p = a.centres[ka[i]];
-    const Vec3 d1 = a.centres[ka[next_corner(i, ka.size())]] - p;
-    for (std::size_t j = 0; j < kb.size(); ++j) {
-      const Vec3& q = b.centres[kb[j]];
-      const Vec3 d2 = b.centres[kb[next_corner(j, kb.size())]] - q;
+  for (std::size_t i = 0; i < ea.size(); ++i) {
+    const Vec3& p = ea.start[i];
+    const Vec3& d1 = ea.edge[i];
+    for (std::size_t j = 0; j < eb.size(); ++j) {
+      const Vec3& q = eb.start[j];
+      const Vec3& d2 = eb.edge[j];
       // The lines' nearest points (Ericson, Real-Time Collision Detection,
       // 5.1.9), kept only where both are inside their edges.
       const Vec3 r = p - q;
-      const double aa = d1.squaredNorm(), e = d2.squaredNorm(), bb = d1.dot(d2);
+      const double aa = ea.squared[i], e = eb.squared[j], bb = d1.dot(d2);
       const double denom = aa * e - bb * bb;
       if (!(denom > 1e-6 * aa * e)) continue;  // parallel, or nearly
       // s and t are in (0, 1) only where their numerators are in (0,
@@ -517,8 +536,11 @@ void Collider::pair_candidates(const Model& model, const Particles& p, std::size
   const Vec3* centre_i = &sphere_centre_[sphere_first_[i]];
   const Vec3* centre_j = &sphere_centre_[sphere_first_[j]];
   const bool flat = model.contact.flat_faces;
-  const Plate plate_i = flat ? Plate(si, plate_frame_[i], p.position[i], sci, centre_i) : Plate();
-  const Plate plate_j = flat ? Plate(sj, plate_frame_[j], p.position[j], scj, centre_j) : Plate();
+  static thread_local RimEdges rim_i, rim_j;  // kept across pairs: no allocation per pair
+  const Plate plate_i =
+      flat ? Plate(si, plate_frame_[i], p.position[i], sci, centre_i, rim_i) : Plate();
+  const Plate plate_j =
+      flat ? Plate(sj, plate_frame_[j], p.position[j], scj, centre_j, rim_j) : Plate();
   if (plate_i.active() || plate_j.active()) {
     // A plate meets the other's spheres, or both plates each other's.
     const ContactKey key{p.id[i], p.id[j], 0, 0};

@@ -84,6 +84,9 @@ struct FlatFace {
   std::vector<std::array<double, 2>> hull;
   std::vector<std::uint32_t> corners;  // the sphere at each corner of the hull
   std::vector<std::uint8_t> at_corner;  // per sphere: 1 where it is one of corners
+  // Past this squared distance from the origin no point is covered: most
+  // points a narrowphase asks about are beyond every corner.
+  double beyond = std::numeric_limits<double>::infinity();
   bool flat() const { return !hull.empty(); }
   // Whether (x, y) is in the hull or on it (to a billionth of an edge).
   bool covers(double x, double y) const;
