@@ -55,18 +55,20 @@ double row_velocity(const std::vector<Vec3>& v, const std::vector<Vec3>& w,
   return s;
 }
 
+namespace {
+// One side of apply_row: what the row's impulse does to body i, at the row's
+// lin and ang of that side (add_row_impulses applies it to listed bodies).
+void apply_side(const SolverBodies& B, std::size_t i, const Vec3& lin, const Vec3& ang,
+                double impulse, std::vector<Vec3>& v, std::vector<Vec3>& w) {
+  v[i] += B.inv_mass[i] * impulse * lin;
+  w[i] += B.inv_inertia[i] * (impulse * ang);
+}
+}  // namespace
+
 void apply_row(const SolverBodies& B, const BilateralRow& row, double impulse,
                std::vector<Vec3>& v, std::vector<Vec3>& w) {
-  if (row.a >= 0) {
-    const auto a = std::size_t(row.a);
-    v[a] += B.inv_mass[a] * impulse * row.lin_a;
-    w[a] += B.inv_inertia[a] * (impulse * row.ang_a);
-  }
-  if (row.b >= 0) {
-    const auto b = std::size_t(row.b);
-    v[b] += B.inv_mass[b] * impulse * row.lin_b;
-    w[b] += B.inv_inertia[b] * (impulse * row.ang_b);
-  }
+  if (row.a >= 0) apply_side(B, std::size_t(row.a), row.lin_a, row.ang_a, impulse, v, w);
+  if (row.b >= 0) apply_side(B, std::size_t(row.b), row.lin_b, row.ang_b, impulse, v, w);
 }
 
 void SolverBodies::resize(std::size_t n) {
@@ -308,9 +310,24 @@ void CcpProblem::gather_rows(const std::vector<Vec3>& v, const std::vector<Vec3>
     y[3 * a_.size() + j] = row_velocity(v, w, rows_[j]) + (add_bias ? rows_[j].bias : 0.0);
 }
 
-void CcpProblem::add_row_impulses(ConstSpan x, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const {
-  for (std::size_t j = 0; j < rows_.size(); ++j)
-    apply_row(*bodies_, rows_[j], x[3 * a_.size() + j], dv, dw);
+void CcpProblem::add_row_impulses(ConstSpan x, std::vector<Vec3>& dv, std::vector<Vec3>& dw,
+                                  const std::vector<std::uint32_t>* only) const {
+  if (only == nullptr) {
+    for (std::size_t j = 0; j < rows_.size(); ++j)
+      apply_row(*bodies_, rows_[j], x[3 * a_.size() + j], dv, dw);
+    return;
+  }
+  // The listed bodies' sides of the rows in the order apply_row adds them
+  // (row by row, a's side before b's): the same bits for each.
+  const auto listed = [&](std::int32_t body) {
+    return body >= 0 && std::binary_search(only->begin(), only->end(), std::uint32_t(body));
+  };
+  for (std::size_t j = 0; j < rows_.size(); ++j) {
+    const BilateralRow& r = rows_[j];
+    const double impulse = x[3 * a_.size() + j];
+    if (listed(r.a)) apply_side(*bodies_, std::size_t(r.a), r.lin_a, r.ang_a, impulse, dv, dw);
+    if (listed(r.b)) apply_side(*bodies_, std::size_t(r.b), r.lin_b, r.ang_b, impulse, dv, dw);
+  }
 }
 
 void CcpProblem::multiply(ConstSpan x, Span y) const {
@@ -321,6 +338,20 @@ void CcpProblem::multiply(ConstSpan x, Span y) const {
 
 void CcpProblem::velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>& w) const {
   scatter(x, true, v, w);
+}
+
+void CcpProblem::velocities_of(ConstSpan x, const std::vector<std::uint32_t>& bodies,
+                               std::vector<Vec3>& v, std::vector<Vec3>& w) const {
+  // The world impulses of the listed bodies' contacts alone, where
+  // scatter_bodies reads them; serial, as a contact of two listed bodies
+  // is in both lists.
+  for (const std::uint32_t u : bodies)
+    for (std::uint32_t e = adj_.offset[u]; e < adj_.offset[u + 1]; ++e) {
+      const std::size_t k = adj_.entry[e] >> 1;
+      const Vec3 P = world_impulse(k, x);
+      std::copy_n(P.data(), 3, &impulse_[3 * k]);
+    }
+  on_kernel([&]<Isa I>() { scatter_bodies_on<I>(impulse_.data(), x, true, v, w, &bodies); });
 }
 
 void CcpProblem::row_velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>& w) const {
@@ -519,11 +550,6 @@ void CcpProblem::world_gradient(ConstSpan P, Span g) const {
     std::copy_n(rel.data(), 3, &g[3 * k]);
   }
   gather_rows(dv_, dw_, true, g);
-}
-
-Vec3 CcpProblem::world_impulse(std::size_t k, ConstSpan x) const {
-  const Frame F = frame(k);
-  return F.n * x[3 * k] + F.t1 * x[3 * k + 1] + F.t2 * x[3 * k + 2];
 }
 
 void CcpProblem::make_tangents(std::size_t k) {

@@ -163,6 +163,13 @@ class CcpProblem {
   double residual_at(const std::vector<Vec3>& v, const std::vector<Vec3>& w, ConstSpan x) const;
   // Final velocities v_free + M^-1 J^T x.
   void velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>& w) const;
+  // velocities() for the listed bodies alone (each of finite mass, listed
+  // once, in ascending order), the others' v, w left as they are: the same bits as
+  // velocities(x) gives those bodies, each body's sum being its own. For
+  // a change of x in the listed bodies' contacts only, where v, w were
+  // velocities() of x before it.
+  void velocities_of(ConstSpan x, const std::vector<std::uint32_t>& bodies, std::vector<Vec3>& v,
+                     std::vector<Vec3>& w) const;
   // The same for x's bilateral rows alone (its contact rows taken as 0),
   // with no pass over the contacts: the same bits as velocities() of that x.
   void row_velocities(ConstSpan x, std::vector<Vec3>& v, std::vector<Vec3>& w) const;
@@ -261,8 +268,13 @@ class CcpProblem {
   // on the normal rows: still symmetric and positive.
   double softness(std::size_t k) const { return softness_[k]; }
   bool yields(std::size_t k) const { return softness_[k] > 0.0; }
-  // Contact k's rows of x (its frame's) as a world vector.
-  Vec3 world_impulse(std::size_t k, ConstSpan x) const;
+  // Contact k's rows of x (its frame's) as a world vector. Inline: the
+  // safeguards take it contact by contact (the build does not contract
+  // floating point, so inlined it rounds as out of line).
+  Vec3 world_impulse(std::size_t k, ConstSpan x) const {
+    const Frame F = frame(k);
+    return F.n * x[3 * k] + F.t1 * x[3 * k + 1] + F.t2 * x[3 * k + 2];
+  }
   // The velocity of b's point of the contact relative to a's, at v, w.
   Vec3 relative_velocity(std::size_t k, const std::vector<Vec3>& v,
                          const std::vector<Vec3>& w) const {
@@ -308,9 +320,12 @@ class CcpProblem {
                              Momentum momentum, TrialSums& t, const NextTrial& next) const;
   template <Isa I>
   void scatter_bodies_on(const double* P, ConstSpan x, bool add_free, std::vector<Vec3>& dv,
-                         std::vector<Vec3>& dw) const;
-  // dv, dw += M^-1 J^T x over x's bilateral rows.
-  void add_row_impulses(ConstSpan x, std::vector<Vec3>& dv, std::vector<Vec3>& dw) const;
+                         std::vector<Vec3>& dw,
+                         const std::vector<std::uint32_t>* only = nullptr) const;
+  // dv, dw += M^-1 J^T x over x's bilateral rows; with `only` (ascending),
+  // for the listed bodies alone.
+  void add_row_impulses(ConstSpan x, std::vector<Vec3>& dv, std::vector<Vec3>& dw,
+                        const std::vector<std::uint32_t>* only = nullptr) const;
   void gather(const std::vector<Vec3>& v, const std::vector<Vec3>& w, bool add_bias, Span y) const;
   // Contact k's rows of J v (+ b with add_bias), as gather writes them.
   std::array<double, 3> gather_contact(std::size_t k, const std::vector<Vec3>& v,

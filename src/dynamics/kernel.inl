@@ -360,7 +360,8 @@ using namespace CES_KERNEL_NAMESPACE;
 
 template <Isa I>
 void CcpProblem::scatter_bodies_on(const double* P, ConstSpan x, bool add_free,
-                                   std::vector<Vec3>& dv, std::vector<Vec3>& dw) const {
+                                   std::vector<Vec3>& dv, std::vector<Vec3>& dw,
+                                   const std::vector<std::uint32_t>* only) const {
   const SolverBodies& B = *bodies_;
   const auto nb = std::ptrdiff_t(B.inv_mass.size());
   // At least a velocity per body; the kernel's own (dv_, dw_) have a spare
@@ -407,12 +408,16 @@ void CcpProblem::scatter_bodies_on(const double* P, ConstSpan x, bool add_free,
     }
   };
   // Chunks of bodies, as the contact passes' (reduce_chunks): each body's
-  // sum is its own, so the bits do not depend on who runs it.
-  const auto bodies = std::size_t(nb), chunk = std::size_t(kReduceChunk);
-  for_each_chunk((bodies + chunk - 1) / chunk, nb > kParallelMin, [&](std::size_t c) {
-    for (std::size_t u = c * chunk; u < std::min(bodies, (c + 1) * chunk); ++u) one_body(u);
-  });
-  add_row_impulses(x, dv, dw);
+  // sum is its own, so the bits do not depend on who runs it, nor on
+  // whether the others run (`only`: the listed bodies alone).
+  const std::size_t bodies = only ? only->size() : std::size_t(nb), chunk = std::size_t(kReduceChunk);
+  auto body = [&](std::size_t i) { return only ? std::size_t((*only)[i]) : i; };
+  for_each_chunk((bodies + chunk - 1) / chunk, std::ptrdiff_t(bodies) > kParallelMin,
+                 [&](std::size_t c) {
+                   for (std::size_t i = c * chunk; i < std::min(bodies, (c + 1) * chunk); ++i)
+                     one_body(body(i));
+                 });
+  add_row_impulses(x, dv, dw, only);
 }
 
 template <Isa I>
@@ -521,7 +526,8 @@ CcpProblem::TrialSums CcpProblem::apgd_gradient_on(ConstSpan x1, Span g1, ConstS
 
 constexpr Isa kIsa = static_cast<Isa>(CES_KERNEL_ISA);
 template void CcpProblem::scatter_bodies_on<kIsa>(const double*, ConstSpan, bool,
-                                                  std::vector<Vec3>&, std::vector<Vec3>&) const;
+                                                  std::vector<Vec3>&, std::vector<Vec3>&,
+                                                  const std::vector<std::uint32_t>*) const;
 template CcpProblem::TrialSums CcpProblem::apgd_step_on<kIsa>(ConstSpan, ConstSpan, Span,
                                                               ConstSpan, ConstSpan, Momentum,
                                                               double) const;

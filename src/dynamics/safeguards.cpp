@@ -130,9 +130,11 @@ void guard_body_walls(const CcpProblem& p, std::size_t b, Span x, std::vector<Ve
   out.unconverged += !done;
 }
 
+// `moved` (per solver body, if given): set for each body it corrects.
 WallGuard guard_wall_rows(const CcpProblem& p, Span x, std::vector<Vec3>& v, std::vector<Vec3>& w,
                           const Allowance& allowed, int first_sweeps, int max_sweeps,
-                          const std::vector<std::uint8_t>* locked) {
+                          const std::vector<std::uint8_t>* locked,
+                          std::vector<std::uint8_t>* moved) {
   const ContactAdjacency& adj = p.adjacency();
   // Bodies are independent here (a wall row moves one body only), so they
   // run in parallel with the same bits for any thread count.
@@ -142,9 +144,11 @@ WallGuard guard_wall_rows(const CcpProblem& p, Span x, std::vector<Vec3>& v, std
       const std::size_t k = adj.entry[e] >> 1;
       violated = wall_entry(p, adj.entry[e]) && -p.row_of(k, v, w) > allowed.of(p, k);
     }
-    if (violated)
-      guard_body_walls(p, b, x, v, w, allowed, first_sweeps, max_sweeps,
-                       locked == nullptr || !(*locked)[b], out);
+    if (!violated) return;
+    const std::size_t before = out.corrections;
+    guard_body_walls(p, b, x, v, w, allowed, first_sweeps, max_sweeps,
+                     locked == nullptr || !(*locked)[b], out);
+    if (moved != nullptr && out.corrections > before) (*moved)[b] = 1;
   };
   return reduce_chunks<WallGuard>(p.bodies().inv_mass.size(),
                                   [&](std::size_t begin, std::size_t end, WallGuard& out) {
@@ -258,14 +262,19 @@ bool release_body(const CcpProblem& p, std::size_t b, Span x, std::vector<Vec3>&
 // release_body for every body. Bodies are independent here: a released
 // body's contacts are all with walls, so no other body reads the rows it
 // changes, and the walls' v, w do not change. In parallel, with the same
-// bits for any thread count. Returns the bodies released.
+// bits for any thread count. Returns the bodies released, and flags them
+// in `moved` (per solver body).
 std::size_t release_sliding_walls(const CcpProblem& p, Span x, std::vector<Vec3>& v,
-                                  std::vector<Vec3>& w, double tolerance) {
-  return reduce_chunks<std::size_t>(p.bodies().inv_mass.size(), [&](std::size_t begin,
-                                                                     std::size_t end,
-                                                                     std::size_t& released) {
-    for (std::size_t b = begin; b < end; ++b) released += release_body(p, b, x, v, w, tolerance);
-  });
+                                  std::vector<Vec3>& w, double tolerance,
+                                  std::vector<std::uint8_t>& moved) {
+  return reduce_chunks<std::size_t>(p.bodies().inv_mass.size(),
+                                    [&](std::size_t begin, std::size_t end, std::size_t& released) {
+                                      for (std::size_t b = begin; b < end; ++b) {
+                                        const bool done = release_body(p, b, x, v, w, tolerance);
+                                        moved[b] = done;
+                                        released += done;
+                                      }
+                                    });
 }
 
 // What the safeguards of one step work on.
@@ -279,7 +288,20 @@ struct Guard {
   Allowance allowed;  // rows violated by less are left alone
 };
 
-void guard_walls(Guard& c, StepStats& stats, const std::vector<std::uint8_t>* locked = nullptr);
+void guard_walls(Guard& c, StepStats& stats, const std::vector<std::uint8_t>* locked = nullptr,
+                 std::vector<std::uint8_t>* moved = nullptr);
+
+// v, w made those of x again after a guard changed the impulses of the
+// bodies flagged in scratch.moved, and their v, w: velocities() of those
+// bodies alone (velocities_of), as the others' contacts kept their
+// impulses. The same bits as velocities() of every body, for a pass over
+// the moved bodies' contacts instead of all.
+void refresh_moved(Guard& c) {
+  SafeguardScratch& s = c.scratch;
+  select_in_order(
+      s.moved.size(), [&](std::size_t b) { return s.moved[b] != 0; }, s.moved_bodies);
+  c.problem.velocities_of(c.gamma, s.moved_bodies, c.bodies.v, c.bodies.w);
+}
 
 // A solve stopped at its iteration cap returns impulses that may be far from
 // the solution, in two ways that matter (docs/accuracy.md, stress table);
@@ -329,10 +351,11 @@ void make_safe(Guard& c, StepStats& stats) {
     }
   }
   // Every step: a solve that converged by its RMS residual can still leave
-  // one wall row violated.
-  guard_walls(c, stats);
+  // one wall row violated. v, w are velocities() of gamma here.
+  c.scratch.moved.assign(v.size(), 0);
+  guard_walls(c, stats, nullptr, &c.scratch.moved);
   if (stats.wall_corrections > 0) {
-    problem.velocities(gamma, v, w);  // exactly those of the impulses
+    refresh_moved(c);  // exactly those of the impulses
     changed = true;
   }
   if (changed) stats.solver.residual = problem.residual_at(v, w, gamma);
@@ -343,8 +366,10 @@ void make_safe(Guard& c, StepStats& stats) {
 void release_sliding(Guard& c, StepStats& stats) {
   std::vector<Vec3>& v = c.bodies.v;
   std::vector<Vec3>& w = c.bodies.w;
-  stats.sliding_releases = release_sliding_walls(c.problem, c.gamma, v, w, c.allowed.velocity);
-  if (stats.sliding_releases > 0) c.problem.velocities(c.gamma, v, w);  // exactly those of x
+  c.scratch.moved.resize(v.size());
+  stats.sliding_releases =
+      release_sliding_walls(c.problem, c.gamma, v, w, c.allowed.velocity, c.scratch.moved);
+  if (stats.sliding_releases > 0) refresh_moved(c);  // exactly those of x
 }
 
 // The contact rows are linear in the step's motion, but a clump's spheres
@@ -393,9 +418,10 @@ void limit_spin(Guard& c, StepStats& stats) {
 }
 
 // The wall guard (guard_wall_rows), its counts into the stats.
-void guard_walls(Guard& c, StepStats& stats, const std::vector<std::uint8_t>* locked) {
+void guard_walls(Guard& c, StepStats& stats, const std::vector<std::uint8_t>* locked,
+                 std::vector<std::uint8_t>* moved) {
   const WallGuard f = guard_wall_rows(c.problem, c.gamma, c.bodies.v, c.bodies.w, c.allowed,
-                                      kGuardSweeps, kGuardSweeps + kFinishSweeps, locked);
+                                      kGuardSweeps, kGuardSweeps + kFinishSweeps, locked, moved);
   stats.wall_corrections += f.corrections;
   stats.walls_finished += f.bodies;
   stats.walls_unfinished += f.unconverged;

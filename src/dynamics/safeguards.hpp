@@ -29,6 +29,8 @@ class SafeguardScratch {
   std::vector<std::uint8_t> capped;    // per solver body: spin capped this step
   std::vector<std::uint8_t> locked;    // per solver body: guarded in translation only
   std::vector<Vec3> base_v, base_w;    // the velocities of the joints' impulses
+  std::vector<std::uint8_t> moved;     // per solver body: a guard changed its impulses
+  std::vector<std::uint32_t> moved_bodies;  // those bodies, in order
   explicit SafeguardScratch(const Model& model);
 };
 
