@@ -99,7 +99,10 @@ struct SceneRun {
   std::vector<std::pair<std::string, double>> stages;  // summary.json wall_time_s.stages
   double iterations_mean = 0;
   std::size_t steps = 0, particles_max = 0, contacts_max = 0;
-  double peak_rss = 0;  // bytes (the child's ru_maxrss)
+  // Bytes: its summary's peak_memory_mib, the process's VmHWM. (wait4's
+  // ru_maxrss would also count the bench's pages the child held between
+  // fork and exec.)
+  double peak_rss = 0;
   std::string error;
   double stage(const std::string& name) const;
   double step_seconds() const;  // every stage but output
@@ -113,7 +116,6 @@ struct ProcessResult {
   int exit_code = -1;  // -1: could not start or killed
   std::string out;     // stdout, when captured
   double wall = 0;     // seconds
-  double max_rss = 0;  // bytes
 };
 ProcessResult run_process(const std::vector<std::string>& argv, bool capture);
 std::string self_exe();

@@ -41,6 +41,7 @@ void read_summary(const std::string& path, SceneRun& run) {
   run.threads = j.value("threads", run.threads);
   run.simulated = j.value("simulated_time_s", 0.0);
   run.steps = j.value("steps", std::size_t(0));
+  run.peak_rss = j.value("peak_memory_mib", 0.0) * double(1 << 20);
   const Json& wall = j.at("wall_time_s");
   run.wall_total = wall.value("total", 0.0);
   const Json stages = wall.value("stages", Json::object());
@@ -71,7 +72,6 @@ SceneRun run_scene(const std::string& ces_sim, const std::string& scene,
   const ProcessResult p = run_process(argv, false);
   run.exit_code = p.exit_code;
   run.process_wall = p.wall;
-  run.peak_rss = p.max_rss;
   run.threads = threads;
   if (p.exit_code != 0) run.error = ces_sim + " exited with code " + std::to_string(p.exit_code);
   for (const std::string& summary : summaries)
