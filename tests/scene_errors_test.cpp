@@ -7,7 +7,13 @@
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
+#include <functional>
+#include <optional>
+#include <set>
 
+#include "scene/diagnostics.hpp"
+#include "scene/resolve.hpp"
+#include "scene/schema.hpp"
 #include "scene_support.hpp"
 
 namespace ces::scene {
@@ -298,6 +304,104 @@ TEST(SceneBadScenes, EveryFileHasExpectations) {
                                     [&](const Expected& e) { return f == e.file; });
     EXPECT_TRUE(listed) << f << " has no expectations in kExpectations";
   }
+}
+
+// ------------------------------------------------------------------ validation in pieces
+
+// What validate() reports on the tree of `path` (read, defaulted and
+// converted as a load does), checking values of more than `piece_values`
+// values a piece at a time; empty when the file does not parse.
+std::vector<std::string> validation_errors(const std::string& path, std::size_t piece_values) {
+  Diagnostics diags;
+  Budget budget;
+  std::optional<Node> root = load_tree(path, {}, budget, diags);
+  if (!root) return {};
+  apply_defaults(*root);
+  assign_paths(*root);
+  convert_units(*root, diags);
+  validate(*root, diags, piece_values);
+  std::vector<std::string> lines;
+  try {
+    if (!diags.empty()) diags.raise();
+  } catch (const SceneError& e) {
+    for (const Diagnostic& d : e.diagnostics()) lines.push_back(d.str());
+  }
+  return lines;
+}
+
+// Pieces down to single values find what the whole document does, on every
+// bad scene and on a scene with faults at every depth.
+TEST(SceneValidation, PiecesOfAnySizeFindWhatTheWholeDocumentFinds) {
+  test::TempDir dir;
+  const std::string nested = dir.write(
+      "nested.yaml", std::string(test::kMinimal) +
+                         "seed: -1\nsolver: {method: apdg, max_iterations: 0, bogus: 1}\n"
+                         "materials:\n  copper: {density: -1 kg/m^3, friction: x}\n"
+                         "  glass: {densty: 1800 kg/m^3}\n"
+                         "feeds:\n  - {name: f, rate: 10 /s, region: {min: [0, 0], max: [1, 1, 1]},"
+                         " mix: [{shape: sphere, size: 1 mm, material: copper, fraction: 2}, 3]}\n"
+                         "  - 7\ncollectors: {}\n");
+  std::vector<std::string> paths{nested};
+  for (const auto& entry : fs::directory_iterator(kBadSceneDir))
+    if (entry.is_regular_file()) paths.push_back(entry.path().string());
+  std::size_t compared = 0;
+  for (const std::string& path : paths) {
+    const std::vector<std::string> whole = validation_errors(path, kPieceValues);
+    if (whole.empty()) continue;
+    ++compared;
+    for (const std::size_t piece_values : {0, 1, 3, 20})
+      EXPECT_EQ(validation_errors(path, piece_values), whole)
+          << path << " in pieces of " << piece_values << " values";
+  }
+  EXPECT_GE(compared, 30u);
+  EXPECT_GE(validation_errors(nested, kPieceValues).size(), 8u);
+}
+
+// The piece-by-piece check is exact only while a value's validity is its
+// own keywords' and its children's: every keyword of the schema must be one
+// that keeps it so (no oneOf, anyOf, not, if, contains, uniqueItems, ...).
+TEST(SceneValidation, TheSchemaUsesOnlyKeywordsThatCheckAPieceAtATime) {
+  const std::set<std::string> allowed{"$schema",
+                                      "$id",
+                                      "$ref",
+                                      "title",
+                                      "description",
+                                      "default",
+                                      "definitions",
+                                      "allOf",
+                                      "type",
+                                      "properties",
+                                      "additionalProperties",
+                                      "required",
+                                      "minProperties",
+                                      "maxProperties",
+                                      "items",
+                                      "minItems",
+                                      "maxItems",
+                                      "enum",
+                                      "const",
+                                      "pattern",
+                                      "minLength",
+                                      "minimum",
+                                      "maximum",
+                                      "exclusiveMinimum",
+                                      "exclusiveMaximum"};
+  std::vector<std::string> others;
+  const std::function<void(const nlohmann::ordered_json&)> visit = [&](const auto& s) {
+    if (!s.is_object()) return;
+    for (const auto& [key, value] : s.items()) {
+      if (key.starts_with("x-") || key == "default" || key == "enum" || key == "const") continue;
+      if (!allowed.contains(key)) others.push_back(key);
+      if (key == "properties" || key == "definitions")
+        for (const auto& [name, sub] : value.items()) visit(sub);
+      else if (value.is_array())
+        for (const auto& sub : value) visit(sub);
+      else
+        visit(value);
+    }
+  };
+  visit(schema());
+  EXPECT_TRUE(others.empty()) << others.front() << " and " << others.size() - 1 << " more";
 }
 
 TEST(SceneBadScenes, DiagnosticFormat) {

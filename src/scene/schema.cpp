@@ -1,6 +1,8 @@
 #include "scene/schema.hpp"
 
 #include <cmath>
+#include <map>
+#include <memory>
 #include <set>
 #include <sstream>
 #include <valijson/adapters/nlohmann_json_adapter.hpp>
@@ -171,17 +173,17 @@ void convert_quantity(Node& n, const ojson* s, Diagnostics& diags) {
 
 // ------------------------------------------------------------ validation
 
+std::unique_ptr<valijson::Schema> compile(const ojson& s) {
+  const nlohmann::json document = nlohmann::json::parse(s.dump());
+  auto compiled = std::make_unique<valijson::Schema>();
+  valijson::SchemaParser parser(valijson::SchemaParser::kDraft7);
+  parser.populateSchema(valijson::adapters::NlohmannJsonAdapter(document), *compiled);
+  return compiled;
+}
+
 const valijson::Schema& compiled_schema() {
-  struct Compiled {
-    valijson::Schema schema;
-    Compiled() {
-      const nlohmann::json document = nlohmann::json::parse(schema_text());
-      valijson::SchemaParser parser(valijson::SchemaParser::kDraft7);
-      parser.populateSchema(valijson::adapters::NlohmannJsonAdapter(document), schema);
-    }
-  };
-  static const Compiled compiled;
-  return compiled.schema;
+  static const std::unique_ptr<valijson::Schema> compiled = compile(schema());
+  return *compiled;
 }
 
 // The node a valijson context ("<root>", "[bodies]", "[0]", ...) names, with
@@ -339,6 +341,112 @@ class ErrorMapper {
   std::set<const Node*> unknown_checked_;
 };
 
+// `s` with every child's subschema `{}`: the keywords of the value itself.
+ojson shell_schema(const ojson& s) {
+  if (const auto ref = s.find("$ref"); ref != s.end()) return shell_schema(dereference(*ref));
+  ojson shell = s;
+  if (const auto props = shell.find("properties"); props != shell.end())
+    for (auto& [key, sub] : props->items()) sub = ojson::object();
+  if (const auto items = shell.find("items"); items != shell.end())
+    *items =
+        items->is_array() ? ojson(ojson::array_t(items->size(), ojson::object())) : ojson::object();
+  if (const auto extra = shell.find("additionalProperties");
+      extra != shell.end() && extra->is_object())
+    *extra = ojson::object();
+  if (const auto parts = shell.find("allOf"); parts != shell.end())
+    for (ojson& part : *parts) part = shell_schema(part);
+  return shell;
+}
+
+// `n` with every child a null: what its shell schema checks.
+nlohmann::json shell_value(const Node& n) {
+  if (n.is_sequence()) return nlohmann::json(nlohmann::json::array_t(n.items.size()));
+  if (!n.is_map()) return to_json(n);
+  nlohmann::json shell = nlohmann::json::object();
+  for (const Entry& e : n.entries) shell[e.key] = nullptr;
+  return shell;
+}
+
+// The values in `n`, itself included, counted up to just past `limit`.
+std::size_t count_values(const Node& n, std::size_t limit) {
+  std::size_t count = 1;
+  for (const Node& item : n.items) {
+    if (count > limit) return count;
+    count += count_values(item, limit - count);
+  }
+  for (const Entry& e : n.entries) {
+    if (count > limit) return count;
+    count += count_values(e.value, limit - count);
+  }
+  return count;
+}
+
+// valijson keeps every error it finds, several per bad value and each with
+// its path: an alias repeated into the values a load allows makes hundreds
+// of megabytes of them. So a value of more than `piece_values` values is
+// checked a piece at a time: its own keywords on its shell, then each child
+// against the child's subschema, recursively. That is exact because the
+// schema composes only through $ref and allOf (no oneOf, anyOf, not, if or
+// uniqueItems; a test keeps it so): a value is valid when its own keywords
+// hold and each child is valid against its subschema.
+class PieceValidator {
+ public:
+  PieceValidator(ErrorMapper& mapper, std::size_t piece_values)
+      : mapper_(mapper), piece_values_(piece_values) {}
+
+  // `context` is valijson's path to `n` ("<root>", "[feeds]", "[0]").
+  void check(const Node& n, const ojson& s, std::vector<std::string>& context) {
+    if (count_values(n, piece_values_) <= piece_values_)
+      return report(to_json(n), compiled(s, false), context);
+    report(shell_value(n), compiled(s, true), context);
+    for (std::size_t i = 0; i < n.items.size(); ++i)
+      check_child(n.items[i], item_schema(s, i), std::to_string(i), context);
+    for (const Entry& e : n.entries)
+      check_child(e.value, property_schema(s, e.key), e.key, context);
+  }
+
+ private:
+  void check_child(const Node& child, const ojson* s, const std::string& key,
+                   std::vector<std::string>& context) {
+    if (!s) return;  // an unknown key: its parent's shell reports it
+    context.push_back("[" + key + "]");
+    check(child, *s, context);
+    context.pop_back();
+  }
+
+  void report(const nlohmann::json& value, const valijson::Schema& schema,
+              const std::vector<std::string>& context) {
+    valijson::ValidationResults results;
+    if (validator_.validate(schema, valijson::adapters::NlohmannJsonAdapter(value), &results))
+      return;
+    valijson::ValidationResults::Error error;
+    while (results.popError(error)) {
+      error.context.erase(error.context.begin());  // "<root>" of the piece
+      error.context.insert(error.context.begin(), context.begin(), context.end());
+      mapper_.map(error);
+    }
+  }
+
+  // A subschema (or its shell) as a document of its own, with the
+  // definitions its references name.
+  const valijson::Schema& compiled(const ojson& s, bool shell) {
+    if (&s == &schema() && !shell) return compiled_schema();
+    std::unique_ptr<valijson::Schema>& slot = cache_[{&s, shell}];
+    if (!slot) {
+      ojson body = shell ? shell_schema(s) : s;
+      if (&s != &schema())
+        body = ojson{{"definitions", schema().at("definitions")}, {"allOf", ojson::array({body})}};
+      slot = compile(body);
+    }
+    return *slot;
+  }
+
+  ErrorMapper& mapper_;
+  std::size_t piece_values_;
+  valijson::Validator validator_{valijson::Validator::kStrongTypes};  // caches its regexes
+  std::map<std::pair<const ojson*, bool>, std::unique_ptr<valijson::Schema>> cache_;
+};
+
 }  // namespace
 
 const ojson* keyword(const ojson& s, std::string_view name) {
@@ -363,14 +471,14 @@ void convert_units(Node& root, Diagnostics& diags) {
   walk_schema(root, [&](Node& n, const ojson* s) { convert_quantity(n, s, diags); });
 }
 
-void validate(const Node& root, Diagnostics& diags) {
-  const nlohmann::json document = to_json(root);
+void validate(const Node& root, Diagnostics& diags, std::size_t piece_values) {
   valijson::Validator validator(valijson::Validator::kStrongTypes);
-  valijson::ValidationResults results;
-  validator.validate(compiled_schema(), valijson::adapters::NlohmannJsonAdapter(document),
-                     &results);
+  if (validator.validate(compiled_schema(), valijson::adapters::NlohmannJsonAdapter(to_json(root)),
+                         nullptr))
+    return;
   ErrorMapper mapper(root, diags);
-  for (const auto& error : results) mapper.map(error);
+  std::vector<std::string> context{"<root>"};
+  PieceValidator(mapper, piece_values).check(root, schema(), context);
 }
 
 }  // namespace ces::scene

@@ -2,6 +2,7 @@
 // defaults ("default"), the kind of quantity each key takes ("x-unit") and
 // which strings are file paths ("x-path").
 #pragma once
+#include <cstddef>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <string_view>
@@ -34,8 +35,14 @@ void apply_defaults(Node& root);
 // key takes; records the kind in Node::dimension.
 void convert_units(Node& root, Diagnostics& diags);
 
+// The largest value (counted in values, itself included) validate() checks
+// whole; a larger one is checked a piece at a time, holding memory to what
+// one piece's errors take.
+inline constexpr std::size_t kPieceValues = 4096;
+
 // Validates against the schema; one diagnostic per problem, at the line of
-// the offending key or value, in words (not valijson's).
-void validate(const Node& root, Diagnostics& diags);
+// the offending key or value, in words (not valijson's). `piece_values` is
+// for tests, which check that pieces of any size find the same problems.
+void validate(const Node& root, Diagnostics& diags, std::size_t piece_values = kPieceValues);
 
 }  // namespace ces::scene
