@@ -11,8 +11,10 @@
 #include <string>
 #include <vector>
 
+#include "scene/diagnostics.hpp"
 #include "scene/limits.hpp"
 #include "scene/scene.hpp"
+#include "scene/schema.hpp"
 #include "support.hpp"
 
 namespace ces::scene {
@@ -241,6 +243,31 @@ TEST(HostileDocuments, ValuesAndKeysAreCounted) {
   std::string text = std::string(kMinimal) + "a: &a '" + std::string(200000, 'x') + "'\nb: [*a";
   for (int i = 0; i < 100; ++i) text += ", *a";
   expect_one(text_errors(text + "]\n", "bytes.yaml"), "or 16 MB of text");
+}
+
+// An alias of a bad feed repeated into a long list: the report keeps the
+// first errors found and counts the others, one per fault of every copy.
+TEST(HostileDocuments, ErrorsPastTheShownOnesAreCounted) {
+  const auto feeds = [](int copies) {
+    std::string text = std::string(kMinimal) +
+                       "a: &a {rate: x, size: y, shape: z, region: r, velocity: v, start: s}\n"
+                       "feeds: [*a";
+    for (int i = 1; i < copies; ++i) text += ", *a";
+    return text + "]\n";
+  };
+  const std::size_t one = text_errors(feeds(1), "one.yaml").size();
+  const std::size_t per_copy = text_errors(feeds(2), "two.yaml").size() - one;
+  ASSERT_GE(per_copy, 6u);
+  ASSERT_LT(one + per_copy, Diagnostics::kShownErrors);
+
+  const int copies = 2000;  // more values than validate() checks in one piece
+  ASSERT_GT(copies * 7, int(kPieceValues));
+  const auto errors = text_errors(feeds(copies), "bomb.yaml");
+  ASSERT_EQ(errors.size(), Diagnostics::kShownErrors + 1);
+  const std::size_t unshown = one + (copies - 1) * per_copy - Diagnostics::kShownErrors;
+  EXPECT_EQ(errors.back().str(), errors.back().file + ": " + std::to_string(unshown) +
+                                     " more errors, not shown (the first 100 found are above)");
+  for (std::size_t i = 0; i + 1 < errors.size(); ++i) EXPECT_GT(errors[i].line, 0);
 }
 
 TEST(HostileDocuments, DeepNestingIsAnErrorNotACrash) {

@@ -46,6 +46,10 @@ SceneError::SceneError(std::vector<Diagnostic> d)
       diagnostics_(std::move(d)) {}
 
 void Diagnostics::error(const Mark& at, std::string path, std::string message) {
+  if (list_.size() == kShownErrors) {
+    ++unshown_;
+    return;
+  }
   list_.push_back({at.file, at.line, at.column, std::move(path), std::move(message)});
 }
 
@@ -73,6 +77,10 @@ void Diagnostics::raise() {
       std::unique(list_.begin(), list_.end(),
                   [&](const Diagnostic& a, const Diagnostic& b) { return key(a) == key(b); }),
       list_.end());
+  if (unshown_ > 0)
+    list_.push_back({list_.front().file, 0, 0, "",
+                     std::to_string(unshown_) + " more errors, not shown (the first " +
+                         std::to_string(kShownErrors) + " found are above)"});
   throw SceneError(std::move(list_));
 }
 

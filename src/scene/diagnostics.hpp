@@ -1,5 +1,6 @@
 // Collects every problem of a scene before anything is thrown.
 #pragma once
+#include <cstddef>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -11,6 +12,10 @@ namespace ces::scene {
 
 class Diagnostics {
  public:
+  // Errors kept for the report; past them only a count is kept, so a
+  // hostile document cannot make a report of millions of lines.
+  static constexpr std::size_t kShownErrors = 100;
+
   void error(const Mark& at, std::string path, std::string message);
   // At a node of the tree; marks it reported so later passes stay quiet.
   void error(Node& at, std::string message);
@@ -20,11 +25,13 @@ class Diagnostics {
   const std::vector<Diagnostic>& warnings() const { return warnings_; }
 
   bool empty() const { return list_.empty(); }
-  // Throws SceneError with everything collected, sorted by place.
+  // Throws SceneError with the errors kept, sorted by place, and a last
+  // line with the number of the others.
   [[noreturn]] void raise();
 
  private:
   std::vector<Diagnostic> list_;
+  std::size_t unshown_ = 0;
   std::vector<Diagnostic> warnings_;
 };
 
