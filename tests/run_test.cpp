@@ -408,6 +408,18 @@ TEST(RunSummary, PeakMemoryIsTheProcessPeakDuringTheRun) {
   const double peak = read_json(dir / "summary.json")["peak_memory_mib"].get<double>() * (1 << 20);
   EXPECT_GE(peak, before);
   EXPECT_LE(peak, after);
+
+  // Each step's resident memory lies within the same bounds: not below the
+  // process's before the run (less the 0.1 MiB it is rounded to), not above
+  // the run's peak.
+  const output::Table steps = output::read_table(dir / "steps.csv");
+  const std::size_t c = steps.column("resident_mib", dir / "steps.csv");
+  ASSERT_FALSE(steps.rows.empty());
+  for (const auto& row : steps.rows) {
+    const double resident = std::stod(row[c]) * (1 << 20);
+    EXPECT_GE(resident, before - 0.05 * (1 << 20)) << row[0];
+    EXPECT_LE(resident, peak + 0.05 * (1 << 20)) << row[0];
+  }
 }
 
 // A particle's mass in the exact tally: as llround gives it below 9.2 kg,

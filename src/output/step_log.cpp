@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/process.hpp"
 #include "output/format.hpp"
 
 namespace ces::output {
@@ -23,7 +24,7 @@ StepLog::StepLog(const std::filesystem::path& steps_csv, int max_iterations, Sta
   file_ = AppendFile(steps_csv);
   file_.write(
       "step,time_s,particles,contacts,asleep,iterations,residual_mps,max_penetration_m,"
-      "max_penetration_rel,max_wall_penetration_rel,wall_s\n");
+      "max_penetration_rel,max_wall_penetration_rel,wall_s,resident_mib\n");
 }
 
 void StepLog::record(const StepStats& s) {
@@ -63,7 +64,8 @@ void StepLog::record(const StepStats& s) {
   CsvWriter row(text);
   row << s.step << s.time << s.particles << s.contacts << s.asleep << s.solver.iterations
       << s.solver.residual << s.max_penetration << s.max_penetration_relative
-      << s.max_wall_penetration_relative << s.seconds.total();
+      << s.max_wall_penetration_relative << s.seconds.total()
+      << std::round(resident_bytes() / (1 << 20) * 10.0) / 10.0;
   row.end_row();
   file_.write(text);
 }
