@@ -7,8 +7,8 @@
 # Writes bench/out/industrial/industrial.txt (and prints it): the machine,
 # its load, the commands, and per run the wall time per stage, particles,
 # contacts, iterations, residual, overlap and peak resident memory (GNU
-# time's maximum RSS), the memory per particle and per contact, and the
-# 1 -> 2 thread speed-up. Usage, from the repository root:
+# time's maximum RSS), the memory per particle and per contact (fitted to
+# the full run's steps.csv), and the 1 -> 2 thread speed-up. Usage, from the repository root:
 #   bash bench/industrial.sh [END [SHORT]]
 #   bash bench/industrial.sh --resume    # the bench an interruption stopped
 # The runs are started at nice 10: on a shared machine they take what the

@@ -136,16 +136,52 @@ def load_line():
             f"(the bench's own runs count in it: up to {cores} of it)")
 
 
-def memory_split(empty, runs):
-    """Bytes per particle and per contact: the two runs' peak resident sets
-    above the empty run's, solved for a P + b C."""
-    (p1, c1, m1), (p2, c2, m2) = runs
-    det = p1 * c2 - p2 * c1
-    if det == 0:
+def slope(points):
+    """Least squares y = c + s x over (x, y) points: (c, s)."""
+    n = len(points)
+    mx, my = sum(x for x, _ in points) / n, sum(y for _, y in points) / n
+    s = sum((x - mx) * (y - my) for x, y in points) / sum((x - mx) ** 2 for x, _ in points)
+    return my - s * mx, s
+
+
+def memory_fit(rows):
+    """Bytes per particle and per contact from each step's resident set
+    against the most particles and contacts held so far (which the arrays'
+    capacities follow). The two grow together once the pile forms, so one
+    fit of both cannot tell them apart: the cost per particle is fitted to
+    the steps before it (contacts at most a quarter of the particles: the
+    particles in flight), the cost per contact to what that leaves over all
+    steps. Returns (base, per particle, per contact, largest departure,
+    steps in flight), or None without resident_mib."""
+    points, p, c = [], 0, 0
+    for r in rows:
+        p, c = max(p, int(r["particles"])), max(c, int(r["contacts"]))
+        resident = float(r.get("resident_mib") or 0) * 2**20
+        if resident > 0:
+            points.append((p, c, resident))
+    flight = [(p, m) for p, c, m in points if p > 0 and 4 * c <= p]
+    if len(flight) < 3 or not any(c for _, c, _ in points):
         return None
-    a = ((m1 - empty) * c2 - (m2 - empty) * c1) / det
-    b = (p1 * (m2 - empty) - p2 * (m1 - empty)) / det
-    return a, b
+    base, a = slope(flight)
+    b = sum(c * (m - base - a * p) for p, c, m in points) / sum(c * c for _, c, _ in points)
+    worst = max(abs(m - base - a * p - b * c) for p, c, m in points)
+    return base, a, b, worst, len(flight)
+
+
+def describe_memory(name, s):
+    fit = memory_fit(step_rows(name))
+    if fit is None:
+        print(f"the {name} run's steps.csv does not separate them (no resident_mib, or no steps in flight)")
+        return
+    base, a, b, worst, flight = fit
+    print(f"fitted to the {name} run's steps.csv, each step's resident set against the most particles "
+          f"and contacts held so far: {a:.0f} B per particle (from its {flight} steps before the pile, "
+          f"contacts at most a quarter of the particles), {b:.0f} B per contact (what that leaves, over "
+          f"every step), {base / 2**20:.1f} MiB besides; largest departure from the fit "
+          f"{worst / 2**20:.1f} MiB (the arrays grow by doubling)")
+    p, c = s["solver"]["particles_max"], s["solver"]["contacts_max"]
+    print(f"at its most ({p} particles, {c} contacts) the fit gives {(base + a * p + b * c) / 2**20:.0f} MiB; "
+          f"its peak resident set was {peak_rss_bytes(name) / 2**20:.0f} MiB")
 
 
 print(f"# ces-sim: the industrial scene ({start})\n")
@@ -195,7 +231,7 @@ def resumed_steps(name):
 print("## The full machine, 1 -> 2 threads\n")
 one_s, steps, one_last = resumed_steps("resume_1")
 two_s, _, two_last = resumed_steps("resume_2")
-same = all(one_last[k] == two_last[k] for k in one_last if k != "wall_s")
+same = all(one_last[k] == two_last[k] for k in one_last if k not in ("wall_s", "resident_mib"))
 print("commands: " + (out / "resume_1.command").read_text().strip() + "; " +
       (out / "resume_2.command").read_text().strip())
 print(f"the full run's checkpoint at {at:g} s resumed to {end} s ({steps} steps; {one_last['particles']} "
@@ -253,17 +289,5 @@ for k in (1, 2, 3):
 print()
 print("## Memory\n")
 empty = peak_rss_bytes("empty")
-runs = [(s["solver"]["particles_max"], s["solver"]["contacts_max"], peak_rss_bytes(n))
-        for s, n in ((two, two_name), (full, "full"))]
 print(f"peak resident set of the scene's process with no particles (one step): {empty / 2**20:.0f} MiB")
-print(f"the full run: {(runs[1][2] - empty) / runs[1][0]:.0f} B per particle above it, its contacts included "
-      f"({runs[1][0]} particles, {runs[1][1]} contacts)")
-split = memory_split(empty, runs)
-if split and min(split) > 0:
-    print(f"solved from the {short} s and full runs (peak resident sets, so capacities rounded up by the "
-          f"vectors' growth are in them): {split[0]:.0f} B per particle, {split[1]:.0f} B per contact")
-elif split:
-    print(f"the {short} s and full runs do not separate a cost per particle from one per contact (solved, "
-          f"one is not positive: {split[0]:.0f} B per particle, {split[1]:.0f} B per contact); the full run's "
-          f"peak also holds what neither count measures: the vectors' spare capacity, the allocator's free "
-          f"lists, and, in a binary that kept them in memory, the records of the particles collected")
+describe_memory("full", full)
