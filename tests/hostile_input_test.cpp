@@ -268,6 +268,21 @@ TEST(HostileDocuments, ErrorsPastTheShownOnesAreCounted) {
   EXPECT_EQ(errors.back().str(), errors.back().file + ": " + std::to_string(unshown) +
                                      " more errors, not shown (the first 100 found are above)");
   for (std::size_t i = 0; i + 1 < errors.size(); ++i) EXPECT_GT(errors[i].line, 0);
+
+  // Aliases of aliases, near the bound on values: a mix with four faults
+  // (size, material, fraction, bogus) 150 times in each of 150 feeds with
+  // three (name, rate, region), under three unknown keys (m, mm, f).
+  std::string nested = std::string(kMinimal) +
+                       "m: &m {shape: z, size: y, material: 1, fraction: q, bogus: 1}\n"
+                       "mm: &mm [*m";
+  for (int i = 1; i < 150; ++i) nested += ", *m";
+  nested += "]\nf: &f {name: 1, rate: x, mix: *mm, region: r}\nfeeds: [*f";
+  for (int i = 1; i < 150; ++i) nested += ", *f";
+  const auto many = text_errors(nested + "]\n", "nested.yaml");
+  ASSERT_EQ(many.size(), Diagnostics::kShownErrors + 1);
+  EXPECT_EQ(many.back().message,
+            std::to_string(150 * 150 * 4 + 150 * 3 + 3 - Diagnostics::kShownErrors) +
+                " more errors, not shown (the first 100 found are above)");
 }
 
 TEST(HostileDocuments, DeepNestingIsAnErrorNotACrash) {
