@@ -45,6 +45,10 @@ class ByteWriter {
     bytes_.append(s);
   }
   const std::string& bytes() const { return bytes_; }
+  // Room for n bytes in all, so that a writer of a known size never copies
+  // what it holds to grow.
+  void reserve(std::size_t n) { bytes_.reserve(n); }
+  std::string take() && { return std::move(bytes_); }
 
  private:
   std::string bytes_;
@@ -83,6 +87,7 @@ class ByteReader {
     return std::string(take(std::size_t(n)), std::size_t(n));
   }
   bool at_end() const { return at_ == bytes_.size(); }
+  std::size_t position() const { return at_; }  // bytes read so far
 
  private:
   const char* take(std::size_t n) {

@@ -2,7 +2,6 @@
 
 #include <cstring>
 #include <fstream>
-#include <iterator>
 
 #include "common/hash.hpp"
 #include "common/serial.hpp"
@@ -27,20 +26,39 @@ std::filesystem::path checkpoint_file(const std::filesystem::path& dir) {
 }
 
 void write_checkpoint(const std::filesystem::path& file, const Checkpoint& c) {
-  ByteWriter out;
-  out.text(kMagic);
-  out.text(c.scene_path);
-  out.text(c.scene_hash);
-  out.text(c.resolved_yaml);
-  out.text(c.body);
-  out.value(checksum(out.bytes()));
-  output::write_file_atomic(file, out.bytes());
+  // The body, most of the bytes, goes to the file from where it is: a copy
+  // of the whole would double the run's memory while it writes.
+  ByteWriter head;
+  head.text(kMagic);
+  head.text(c.scene_path);
+  head.text(c.scene_hash);
+  head.text(c.resolved_yaml);
+  head.value(std::uint64_t(c.body.size()));
+  ByteWriter tail;
+  tail.value(fnv1a(c.body, checksum(head.bytes())));
+  output::AtomicFile out(file);
+  for (const std::string_view part :
+       {std::string_view(head.bytes()), std::string_view(c.body), std::string_view(tail.bytes())})
+    out.write(part);
+  out.commit();
 }
 
-Checkpoint read_checkpoint(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
+namespace {
+
+std::string read_all(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary | std::ios::ate);
   if (!in) throw output::IoError("no checkpoint at " + file.string());
-  const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  std::string bytes(std::size_t(in.tellg()), '\0');
+  in.seekg(0);
+  if (!in.read(bytes.data(), std::streamsize(bytes.size())))
+    throw output::IoError("cannot read the checkpoint " + file.string());
+  return bytes;
+}
+
+}  // namespace
+
+Checkpoint read_checkpoint(const std::filesystem::path& file) {
+  std::string bytes = read_all(file);
   ByteReader r(bytes);
   Checkpoint c;
   try {
@@ -53,9 +71,14 @@ Checkpoint read_checkpoint(const std::filesystem::path& file) {
     c.scene_path = r.text();
     c.scene_hash = r.text();
     c.resolved_yaml = r.text();
-    c.body = r.text();
-    r.value(sum);
-    if (!r.at_end()) throw CorruptData("bytes after its end");
+    const auto length = r.value<std::uint64_t>();
+    if (r.position() > sum_at || length != sum_at - r.position())
+      throw CorruptData("its state is not the length it says");
+    // The state moves out of the bytes read, not copied: it is most of them.
+    const std::size_t start = r.position();
+    bytes.resize(sum_at);
+    bytes.erase(0, start);
+    c.body = std::move(bytes);
   } catch (const CorruptData& e) {
     throw CorruptData(file.string() + ": " + e.what());
   }

@@ -228,6 +228,7 @@ class Runner {
   Observers observers_;
   ThreadGovernor threads_;
   std::uint64_t checkpoint_steps_;  // steps between checkpoints; 0: none
+  std::size_t checkpoint_bytes_ = 0;  // the state in the last checkpoint
   double output_seconds_ = 0.0;  // the output stage's, and the writing before and after the steps
   double wall_before_ = 0.0;     // the wall time of a resumed run's earlier processes
   double peak_before_ = 0.0;     // bytes: their largest peak resident set
@@ -370,7 +371,10 @@ bool Runner::caller_stops(bool last) {
 // The whole state, then a summary that says how far the run got.
 void Runner::checkpoint() {
   const auto t0 = Clock::now();
+  // Room for the last checkpoint's state and an eighth: growing by
+  // doubling, the buffer would copy itself and hold up to twice the state.
   ByteWriter body;
+  body.reserve(checkpoint_bytes_ + checkpoint_bytes_ / 8);
   world_.save(body);
   observers_.save(body);
   // The run's wall time and output stage so far, which the other stages'
@@ -379,8 +383,9 @@ void Runner::checkpoint() {
   body.value(wall());
   body.value(output_seconds_);
   body.value(peak_memory());
+  checkpoint_bytes_ = body.bytes().size();
   write_checkpoint(dir_ / "checkpoint.bin",
-                   {sim_.scene_path, sim_.scene_hash, sim_.resolved_yaml, body.bytes()});
+                   {sim_.scene_path, sim_.scene_hash, sim_.resolved_yaml, std::move(body).take()});
   output::write_file_atomic(dir_ / "summary.json", output::summary_json(record()));
   output_seconds_ += seconds_since(t0);
 }
