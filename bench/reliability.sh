@@ -8,7 +8,8 @@
 # the Release build in build/:
 #   bash bench/reliability.sh [FUZZ_SECONDS] [KILL_TRIALS]    (default: 600, 20)
 # The three targets fuzz at once, FUZZ_SECONDS each, with the limits of the
-# CI's fuzz tests (a hang is a unit over 120 s, memory over 2 GB), from the
+# CI's fuzz tests (a hang is a unit over 120 s, memory over 4 GB or an
+# allocation over 2 GB), from the
 # seeds and past findings into a corpus of their own.
 #
 # Each kill trial starts tests/scenes/tiny.yaml (2.5 s simulated, a
@@ -43,8 +44,8 @@ fuzz_target() {
   mkdir -p "$dir/corpus" "$dir/findings"
   ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
     LSAN_OPTIONS=suppressions=fuzz/lsan.supp \
-    "$fuzz/fuzz_$target" -max_total_time="$seconds" -timeout=120 -rss_limit_mb=2048 \
-      -max_len=4096 -print_final_stats=1 -dict="$fuzz/$dict" \
+    "$fuzz/fuzz_$target" -max_total_time="$seconds" -timeout=120 -rss_limit_mb=4096 \
+      -malloc_limit_mb=2048 -max_len=4096 -print_final_stats=1 -dict="$fuzz/$dict" \
       -artifact_prefix="$dir/findings/" "$dir/corpus" "$fuzz/seeds/$target" \
       "fuzz/regressions/$target" > "$dir/log.txt" 2>&1 || true
   local f=$dir/findings
