@@ -472,10 +472,6 @@ void convert_units(Node& root, Diagnostics& diags) {
 }
 
 void validate(const Node& root, Diagnostics& diags, std::size_t piece_values) {
-  valijson::Validator validator(valijson::Validator::kStrongTypes);
-  if (validator.validate(compiled_schema(), valijson::adapters::NlohmannJsonAdapter(to_json(root)),
-                         nullptr))
-    return;
   ErrorMapper mapper(root, diags);
   std::vector<std::string> context{"<root>"};
   PieceValidator(mapper, piece_values).check(root, schema(), context);
