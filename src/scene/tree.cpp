@@ -1,6 +1,7 @@
 #include "scene/tree.hpp"
 
 #include <yaml-cpp/depthguard.h>
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -8,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <sstream>
 #include <stdexcept>
 #include <vector>
 
@@ -322,6 +324,50 @@ const Node& Node::at(std::string_view key) const {
                          "' after validation");
 }
 
+namespace {
+
+// The marks of the first two documents' roots. yaml-cpp's LoadAll reads
+// every document, and on some malformed text (a leading ',') it yields
+// empty documents at the same place for ever, each kept: two are enough to
+// tell one document from more, or from a parser that does not move on.
+class FirstDocuments : public YAML::EventHandler {
+ public:
+  explicit FirstDocuments(const std::string& text) {
+    std::istringstream in(text);
+    YAML::Parser parser(in);
+    for (int i = 0; i < 2 && parser.HandleNextDocument(*this); ++i) {
+    }
+  }
+  std::vector<YAML::Mark> roots;  // one per document read
+
+ private:
+  void root(const YAML::Mark& m) {
+    if (roots.size() < documents_) roots.push_back(m);
+  }
+  void OnDocumentStart(const YAML::Mark&) override { ++documents_; }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark& m, YAML::anchor_t) override { root(m); }
+  void OnAlias(const YAML::Mark& m, YAML::anchor_t) override { root(m); }
+  void OnScalar(const YAML::Mark& m, const std::string&, YAML::anchor_t,
+                const std::string&) override {
+    root(m);
+  }
+  void OnSequenceStart(const YAML::Mark& m, const std::string&, YAML::anchor_t,
+                       YAML::EmitterStyle::value) override {
+    root(m);
+  }
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark& m, const std::string&, YAML::anchor_t,
+                  YAML::EmitterStyle::value) override {
+    root(m);
+  }
+  void OnMapEnd() override {}
+
+  std::size_t documents_ = 0;
+};
+
+}  // namespace
+
 std::optional<Node> parse(const std::string& text, const std::string& file, bool json,
                           Budget& budget, Diagnostics& diags) {
   if (text.size() > limits::kFileBytes) {
@@ -351,15 +397,17 @@ std::optional<Node> parse(const std::string& text, const std::string& file, bool
   try {
     // One document: yaml-cpp's Load would read the first and drop what
     // follows a '---' or '...' unseen, however wrong.
-    const std::vector<YAML::Node> documents = YAML::LoadAll(text);
-    if (documents.size() > 1) {
-      const YAML::Mark at = documents[1].Mark();
+    const FirstDocuments documents(text);
+    if (documents.roots.size() > 1) {
+      const YAML::Mark at = documents.roots[1];
       const bool known = at.line >= 0;
+      const bool stuck = at.pos == documents.roots[0].pos;
       diags.error({file, known ? at.line + 1 : 1, known ? at.column + 1 : 1}, "",
-                  "a second YAML document (after '---' or '...'), expected one scene");
+                  stuck ? "invalid YAML: the text from here on cannot be read"
+                        : "a second YAML document (after '---' or '...'), expected one scene");
       return std::nullopt;
     }
-    const YAML::Node root = documents.empty() ? YAML::Node() : documents.front();
+    const YAML::Node root = documents.roots.empty() ? YAML::Node() : YAML::Load(text);
     Converter converter(text, file, budget, diags);
     Node tree = converter.convert(root, {file, 1, 1});
     if (converter.stopped()) return std::nullopt;
