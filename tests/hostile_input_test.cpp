@@ -285,6 +285,27 @@ TEST(HostileDocuments, ErrorsPastTheShownOnesAreCounted) {
                 " more errors, not shown (the first 100 found are above)");
 }
 
+// Each error reported twice, as a node that two passes check: the report
+// shows the first 100 different ones and counts the rest once each.
+TEST(HostileDocuments, ErrorsReportedTwiceAreShownAndCountedOnce) {
+  Diagnostics diags;
+  const int distinct = int(Diagnostics::kShownErrors) + 50;
+  for (int pass = 0; pass < 2; ++pass)
+    for (int i = 0; i < distinct; ++i)
+      diags.error(Mark{"twice.yaml", i + 1, 3}, "feeds[" + std::to_string(i) + "]", "bad rate");
+  try {
+    diags.raise();
+  } catch (const SceneError& e) {
+    const std::vector<Diagnostic>& shown = e.diagnostics();
+    ASSERT_EQ(shown.size(), Diagnostics::kShownErrors + 1);
+    for (std::size_t i = 0; i < Diagnostics::kShownErrors; ++i)
+      EXPECT_EQ(shown[i].line, int(i) + 1);
+    EXPECT_EQ(shown.back().message, "50 more errors, not shown (the first 100 found are above)");
+    return;
+  }
+  ADD_FAILURE() << "raise() did not throw";
+}
+
 TEST(HostileDocuments, DeepNestingIsAnErrorNotACrash) {
   for (const char* name : {"deep.yaml", "deep.json"}) {
     const std::string open(100000, '['), close(100000, ']');

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <tuple>
 
+#include "common/hash.hpp"
 #include "scene/text.hpp"
 
 namespace ces::scene {
@@ -45,7 +46,18 @@ SceneError::SceneError(std::vector<Diagnostic> d)
     : std::runtime_error(d.empty() ? "invalid scene" : d.front().str()),
       diagnostics_(std::move(d)) {}
 
+// An error found twice (by two passes over one node) is one error: kept
+// or counted once. Errors are told apart by a 64-bit hash of their place
+// and message, not by their text, so that counting a hostile document's
+// millions holds a number per error, not its strings; two different errors
+// share a hash with a chance of about n^2 / 2^65 for n errors.
 void Diagnostics::error(const Mark& at, std::string path, std::string message) {
+  const std::string place = std::to_string(at.line) + ':' + std::to_string(at.column);
+  std::uint64_t h = fnv1a(at.file);
+  for (const std::string_view part :
+       {std::string_view(place), std::string_view(path), std::string_view(message)})
+    h = fnv1a(part, fnv1a(std::string_view("\0", 1), h));
+  if (!seen_.insert(h).second) return;
   if (list_.size() == kShownErrors) {
     ++unshown_;
     return;
@@ -73,10 +85,6 @@ void Diagnostics::raise() {
   };
   std::stable_sort(list_.begin(), list_.end(),
                    [&](const Diagnostic& a, const Diagnostic& b) { return key(a) < key(b); });
-  list_.erase(
-      std::unique(list_.begin(), list_.end(),
-                  [&](const Diagnostic& a, const Diagnostic& b) { return key(a) == key(b); }),
-      list_.end());
   if (unshown_ > 0)
     list_.push_back({list_.front().file, 0, 0, "",
                      std::to_string(unshown_) + " more errors, not shown (the first " +

@@ -1,8 +1,10 @@
 // Collects every problem of a scene before anything is thrown.
 #pragma once
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <string_view>
+#include <unordered_set>
 #include <vector>
 
 #include "scene/scene.hpp"
@@ -13,7 +15,8 @@ namespace ces::scene {
 class Diagnostics {
  public:
   // Errors kept for the report; past them only a count is kept, so a
-  // hostile document cannot make a report of millions of lines.
+  // hostile document cannot make a report of millions of lines. An error
+  // reported again is neither kept nor counted twice.
   static constexpr std::size_t kShownErrors = 100;
 
   void error(const Mark& at, std::string path, std::string message);
@@ -32,6 +35,7 @@ class Diagnostics {
  private:
   std::vector<Diagnostic> list_;
   std::size_t unshown_ = 0;
+  std::unordered_set<std::uint64_t> seen_;  // every error's hash, shown or not
   std::vector<Diagnostic> warnings_;
 };
 
