@@ -8,9 +8,8 @@
 # the Release build in build/:
 #   bash bench/reliability.sh [FUZZ_SECONDS] [KILL_TRIALS]    (default: 600, 20)
 # The three targets fuzz at once, FUZZ_SECONDS each, with the limits of the
-# CI's fuzz tests (a hang is a unit over 120 s, memory over 4 GB or an
-# allocation over 2 GB), from the
-# seeds and past findings into a corpus of their own.
+# CI's fuzz tests (fuzz/limits), from the seeds and past findings into a
+# corpus of their own.
 #
 # Each kill trial starts tests/scenes/tiny.yaml (2.5 s simulated, a
 # checkpoint every 0.1 s) into a folder holding a complete earlier run,
@@ -39,13 +38,15 @@ result_hashes() {
   (cd "$1" && sha256sum "${results[@]}" && find trajectories -type f | LC_ALL=C sort | xargs sha256sum)
 }
 
+mapfile -t limits < <(grep '^-' fuzz/limits)
+
 fuzz_target() {
   local target=$1 dict=$2 dir=$out/$1
   mkdir -p "$dir/corpus" "$dir/findings"
   ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
     LSAN_OPTIONS=suppressions=fuzz/lsan.supp \
-    "$fuzz/fuzz_$target" -max_total_time="$seconds" -timeout=120 -rss_limit_mb=4096 \
-      -malloc_limit_mb=2048 -max_len=4096 -print_final_stats=1 -dict="$fuzz/$dict" \
+    "$fuzz/fuzz_$target" -max_total_time="$seconds" "${limits[@]}" \
+      -print_final_stats=1 -dict="$fuzz/$dict" \
       -artifact_prefix="$dir/findings/" "$dir/corpus" "$fuzz/seeds/$target" \
       "fuzz/regressions/$target" > "$dir/log.txt" 2>&1 || true
   local f=$dir/findings
