@@ -286,6 +286,7 @@ void Runner::read_checkpoint_body() {
   in.value(output_seconds_);
   in.value(peak_before_);
   if (!in.at_end()) throw CorruptData("the checkpoint holds more than this scene's run");
+  checkpoint_bytes_ = resume_->size();  // the next checkpoint's buffer is reserved from it
 }
 
 // A new run writes what it knows before its first step; a resumed one
