@@ -208,8 +208,8 @@ const Expected kExpectations[] = {
     {"invalid_utf8.yaml", "invalid_utf8.yaml", 3, "invalid UTF-8 (byte 0xa1), expected UTF-8 text"},
     {"two_documents.yaml", "two_documents.yaml", 4,
      "a second YAML document (after '---' or '...'), expected one scene"},
-    // yaml-cpp reads endless empty documents at a leading ',' (its LoadAll
-    // filled memory): the load reads two at most.
+    // At a leading ',' yaml-cpp yields empty documents at the same place
+    // for ever: the load reads two at most and names the place.
     {"leading_comma.yaml", "leading_comma.yaml", 1,
      "invalid YAML: the text from here on cannot be read"},
     {"key_too_long.yaml", "key_too_long.yaml", 4, "a key path longer than 256 characters"},

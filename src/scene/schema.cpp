@@ -383,8 +383,9 @@ std::size_t count_values(const Node& n, std::size_t limit) {
 
 // valijson keeps every error it finds, several per bad value and each with
 // its path: their memory grows with the faults of the whole document, and
-// an alias repeated into the values a load allows repeats its faults too. So a value of more than `piece_values` values is
-// checked a piece at a time: its own keywords on its shell, then each child
+// an alias repeated into the values a load allows repeats its faults too.
+// So a value of more than `piece_values` values is checked a piece at a
+// time: its own keywords on its shell, then each child
 // against the child's subschema, recursively. That is exact because the
 // schema composes only through $ref and allOf (no oneOf, anyOf, not, if or
 // uniqueItems; a test keeps it so): a value is valid when its own keywords
