@@ -61,6 +61,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Contacts per chunk of find_touches; fixed, so the chunks do not depend on
 // the threads.
 constexpr std::size_t kTouchChunk = 4096;
+// Particles per chunk of the charge and force update.
+constexpr std::size_t kUpdateChunk = 256;
 
 // Flat shapes (ShapeElectrics): at least this many thicknesses wide both
 // ways across their thinnest principal axis, so t/a <= 2/1.5 = 1.33, inside
@@ -250,9 +252,13 @@ void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
                                 const Bodies& bodies, Particles& p) {
   const double h = model.step;
   find_touches(model, contacts, bodies, p);
-  const auto n = std::ptrdiff_t(p.size());
-#pragma omp parallel for schedule(static) if (n > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < n; ++s) update(model, p, std::size_t(s), contacts, h);
+  // The particles are ordered in space and those on the drum cost most
+  // (image pull, charging): for_each_chunk evens the threads' shares out.
+  const std::size_t n = p.size(), chunks = (n + kUpdateChunk - 1) / kUpdateChunk;
+  for_each_chunk(chunks, std::ptrdiff_t(n) > kParallelMin, [&](std::size_t ch) {
+    for (std::size_t i = ch * kUpdateChunk; i < std::min(n, (ch + 1) * kUpdateChunk); ++i)
+      update(model, p, i, contacts, h);
+  });
 }
 
 // This step's touches, from the contact list (body contacts name the body
@@ -284,14 +290,14 @@ void ElectrostaticsStage::find_touches(const Model& model, const Contacts& c, co
   // A particle asleep on the drum (dynamics/sleep.hpp) has no contact with
   // it listed: it touches it where its nearest sphere does, which is
   // where its closest contact was.
-  carried_normal_.resize(np);
+  carried_.resize(np);
   const auto n = std::ptrdiff_t(np);
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
   for (std::ptrdiff_t s = 0; s < n; ++s) {
     const auto i = std::size_t(s);
-    if (p.carrier[i] != spec_.drum_body) continue;
-    const DrumGap gap = nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i);
-    carried_normal_[i] = gap.found() ? gap.normal : Vec3::Zero();
+    carried_[i] = p.carrier[i] == spec_.drum_body
+                      ? nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i)
+                      : DrumGap{};
   }
 }
 
@@ -375,8 +381,7 @@ ElectrostaticsStage::Site ElectrostaticsStage::site(const Model& model, const Pa
   const std::int32_t k = drum_contact_[i], kn = near_contact_[i];
   const Vec3* touch = k >= 0 ? &c.normal[std::size_t(k)] : nullptr;
   const Vec3* near = kn >= 0 ? &c.normal[std::size_t(kn)] : nullptr;
-  if (p.carrier[i] == spec_.drum_body && !carried_normal_[i].isZero())
-    touch = near = &carried_normal_[i];
+  if (carried_[i].found()) touch = near = &carried_[i].normal;
   const ShapeElectrics& shape = shapes_[std::size_t(p.shape[i])];
   const double volume = p.mass[i] / density_[std::size_t(p.material[i])];
   const double area = p.scale[i] * p.scale[i] * shape.face_area;
@@ -384,8 +389,11 @@ ElectrostaticsStage::Site ElectrostaticsStage::site(const Model& model, const Pa
   const Vec3 e = active ? field_at(x, j) : Vec3::Zero();
   // Only an insulating part on the drum's width feels the image pull.
   const bool pulled = active && material(p, i).metal_fraction < 1.0;
-  const DrumGap image =
-      pulled ? nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i) : DrumGap{};
+  // A carried particle's nearest drum is find_touches' (the same positions).
+  const bool carried = p.carrier[i] == spec_.drum_body;
+  const DrumGap image = !pulled   ? DrumGap{}
+                        : carried ? carried_[i]
+                                  : nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i);
   return {x,
           e,
           j,

@@ -194,7 +194,7 @@ class ElectrostaticsStage {
   std::vector<std::int32_t> drum_contact_;  // per particle: touching drum contact, or -1
   std::vector<std::int32_t> near_contact_;  // per particle: closest drum contact, or -1
   std::vector<std::uint8_t> brush_touch_;   // per particle
-  std::vector<Vec3> carried_normal_;        // per particle asleep on the drum: its touch
+  std::vector<DrumGap> carried_;            // per particle asleep on the drum: its nearest drum
 };
 
 }  // namespace ces::fields
