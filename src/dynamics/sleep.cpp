@@ -21,6 +21,8 @@ constexpr double kReserve = 0.5;
 constexpr double kPushUnit = 1e-21;
 constexpr double kPushCap = 1e-4;
 constexpr std::int32_t kNone = -1, kSeveral = -2;
+// Particles per chunk of update().
+constexpr std::size_t kUpdateChunk = 256;
 
 void wake(Particles& p, std::size_t i) {
   p.carrier[i] = Particles::kAwake;
@@ -235,31 +237,38 @@ bool Sleep::held(const Model& model, const Bodies& bodies, const Particles& p, s
 std::size_t Sleep::update(const Model& model, const Bodies& bodies, const Contacts& contacts,
                           const std::vector<Vec3>& impulses, Particles& p) {
   read_contacts(contacts, impulses, p.size());
-  std::size_t asleep = 0;
-  const auto n = std::ptrdiff_t(p.size());
-#pragma omp parallel for schedule(static) reduction(+ : asleep) if (n > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < n; ++s) {
-    const auto i = std::size_t(s);
-    if (p.asleep(i)) {
-      if (held(model, bodies, p, i, std::size_t(p.carrier[i])))
-        ++asleep;
-      else
-        wake(p, i);
-      continue;
-    }
-    const std::int32_t k = pressed_by_[i];
-    if (k < 0 || !turns_in_place(model, bodies, std::size_t(k)) ||
-        !at_rest(model, bodies, p, i, std::size_t(k)) ||
-        !held(model, bodies, p, i, std::size_t(k))) {
-      p.at_rest[i] = 0.0;
-      continue;
-    }
-    p.at_rest[i] += model.step;
-    if (p.at_rest[i] < model.sleep.time) continue;
-    p.carrier[i] = k;
-    ++asleep;
+  // The sleepers, whose support is looked for every step, lie together in
+  // the spatially ordered arrays (on the drum): for_each_chunk evens the
+  // threads' shares out. Each particle's outcome is its own; the count is
+  // an integer sum.
+  const std::size_t n = p.size(), chunks = (n + kUpdateChunk - 1) / kUpdateChunk;
+  std::atomic<std::size_t> asleep = 0;
+  for_each_chunk(chunks, std::ptrdiff_t(n) > kParallelMin, [&](std::size_t c) {
+    std::size_t count = 0;
+    for (std::size_t i = c * kUpdateChunk; i < std::min(n, (c + 1) * kUpdateChunk); ++i)
+      count += update_one(model, bodies, p, i) ? 1 : 0;
+    asleep.fetch_add(count, std::memory_order_relaxed);
+  });
+  return asleep.load(std::memory_order_relaxed);
+}
+
+bool Sleep::update_one(const Model& model, const Bodies& bodies, Particles& p,
+                       std::size_t i) const {
+  if (p.asleep(i)) {
+    if (held(model, bodies, p, i, std::size_t(p.carrier[i]))) return true;
+    wake(p, i);
+    return false;
   }
-  return asleep;
+  const std::int32_t k = pressed_by_[i];
+  if (k < 0 || !turns_in_place(model, bodies, std::size_t(k)) ||
+      !at_rest(model, bodies, p, i, std::size_t(k)) || !held(model, bodies, p, i, std::size_t(k))) {
+    p.at_rest[i] = 0.0;
+    return false;
+  }
+  p.at_rest[i] += model.step;
+  if (p.at_rest[i] < model.sleep.time) return false;
+  p.carrier[i] = k;
+  return true;
 }
 
 }  // namespace ces

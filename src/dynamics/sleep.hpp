@@ -55,6 +55,8 @@ class Sleep {
                      std::size_t np);
   bool held(const Model& model, const Bodies& bodies, const Particles& p, std::size_t i,
             std::size_t body) const;
+  // update() for particle i: whether it sleeps after it.
+  bool update_one(const Model& model, const Bodies& bodies, Particles& p, std::size_t i) const;
 
   // Per particle, this step: the body pressing it (-1: none, -2: several),
   // and the sum of its neighbours' impulses on it, in fixed point
