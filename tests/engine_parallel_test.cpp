@@ -128,6 +128,18 @@ TEST(Engine, ParallelScanSelectAndRunChunksMatchTheirSerialDefinitions) {
           ASSERT_LE(chunk_of[label[i]].load(), i - 1) << "run cut at " << i;
         }
       }
+      // Fixed ranges: chunk c is [100 c, 100 c + 100), the last one short,
+      // each item once.
+      std::vector<std::atomic<int>> ranged(n);
+      std::atomic<std::size_t> chunks{0};
+      for_each_range(n, 100, true, [&](std::size_t c, std::size_t begin, std::size_t end) {
+        chunks.fetch_add(1);
+        EXPECT_EQ(begin, 100 * c);
+        EXPECT_EQ(end, std::min(n, begin + 100));
+        for (std::size_t i = begin; i < end; ++i) ranged[i].fetch_add(1);
+      });
+      EXPECT_EQ(chunks.load(), (n + 99) / 100) << n << " items";
+      for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(ranged[i].load(), 1) << i;
     }
   }
   omp_set_num_threads(omp_get_num_procs());

@@ -55,8 +55,8 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
   runs_.resize(n);
   // Dense regions of the flow cost more per entry: for_each_chunk evens
   // them out, as in collide.cpp.
-  for_each_chunk(chunks, chunks > 1, [&](std::size_t ch) {
-    sweep(ch, std::min(n, (ch + 1) * kChunk), centers, radii);
+  for_each_range(n, kChunk, true, [&](std::size_t ch, std::size_t begin, std::size_t end) {
+    sweep(ch, begin, end, centers, radii);
   });
 
   // Each particle's run in index order: the pairs come out sorted by (i, j)
@@ -122,8 +122,8 @@ void GridBroadphase::sort_entries() {
 // cell, shifted by a fixed (dx, dy), grows with the entry's key, so nine
 // cursors only move forward: no search per entry (nine binary searches of
 // all entries each would cost most of the broadphase).
-void GridBroadphase::sweep(std::size_t ch, std::size_t end, const std::vector<Vec3>& centers,
-                           const std::vector<double>& radii) {
+void GridBroadphase::sweep(std::size_t ch, std::size_t begin, std::size_t end,
+                           const std::vector<Vec3>& centers, const std::vector<double>& radii) {
   constexpr std::size_t kUnset = ~std::size_t{0};
   constexpr std::size_t kWalk = 8;  // cursor steps before it searches instead
   const std::size_t n = entries_.size();
@@ -145,7 +145,7 @@ void GridBroadphase::sweep(std::size_t ch, std::size_t end, const std::vector<Ve
                     entries_.begin());
   };
   constexpr std::uint64_t kMask = (std::uint64_t{1} << kCellBits) - 1;
-  for (std::size_t s = ch * kChunk; s < end; ++s) {
+  for (std::size_t s = begin; s < end; ++s) {
     const Entry& e = entries_[s];
     const auto i = std::size_t(e.index);
     const auto cx = std::int64_t(e.cell >> (2 * kCellBits));

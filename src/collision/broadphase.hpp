@@ -29,8 +29,8 @@ class GridBroadphase {
     std::uint32_t chunk, begin, count;
   };
   void sort_entries();
-  void sweep(std::size_t chunk, std::size_t end, const std::vector<Vec3>& centers,
-             const std::vector<double>& radii);
+  void sweep(std::size_t chunk, std::size_t begin, std::size_t end,
+             const std::vector<Vec3>& centers, const std::vector<double>& radii);
   std::vector<Entry> entries_;  // by cell, then index
   std::vector<Entry> sorted_;   // the merges' other buffer
   std::vector<OwnLine<std::vector<std::int32_t>>> chunk_partners_;

@@ -265,9 +265,9 @@ void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts
   // Handed out as threads free up (dynamic), the chunks' buffers would move
   // between the cores every step, which costs the pair loop what the second
   // thread gains. Each chunk fills its own list: the same contacts.
-  for_each_chunk(count, count > 1, [&](std::size_t ch) {
+  for_each_range(n, kChunk, true, [&](std::size_t ch, std::size_t begin, std::size_t end) {
     chunks[ch].clear();
-    fill(ch * kChunk, std::min(n, (ch + 1) * kChunk), chunks[ch]);
+    fill(begin, end, chunks[ch]);
   });
   // Copied into place in parallel at `used`: on one thread it would be the
   // largest serial part of the stage. `out` keeps the last step's length

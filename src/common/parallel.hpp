@@ -81,6 +81,14 @@ void for_each_chunk(std::size_t count, bool parallel, Fn&& fn) {
   }
 }
 
+// fn(c, begin, end) for the fixed chunks [c chunk, (c + 1) chunk) of
+// [0, n), the last one short, by for_each_chunk.
+template <class Fn>
+void for_each_range(std::size_t n, std::size_t chunk, bool parallel, Fn&& fn) {
+  for_each_chunk((n + chunk - 1) / chunk, parallel,
+                 [&](std::size_t c) { fn(c, c * chunk, std::min(n, (c + 1) * chunk)); });
+}
+
 // fn(begin, end) over [0, n) in fixed chunks of `chunk` items, on the
 // threads, each chunk's bounds moved forward past any run they would cut
 // (items i - 1 and i with same(i - 1, i) are of one run): every run is in

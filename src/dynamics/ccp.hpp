@@ -450,16 +450,15 @@ inline void project_cone(double mu, double& gn, double& gt1, double& gt2) {
 template <class Part, class ChunkFn>
 Part reduce_chunks(std::size_t n, ChunkFn fn) {
   const auto chunk = std::size_t(kReduceChunk);
-  const auto chunks = std::ptrdiff_t((n + chunk - 1) / chunk);
   // Grows only: one buffer per instantiation and thread of the caller.
   // (Named through a reference: inside the parallel loop the thread_local
   // itself would be each worker's own, empty, instance.)
   static thread_local std::vector<Part> buffer;
   std::vector<Part>& partial = buffer;
-  partial.assign(std::size_t(chunks), Part{});
-  for_each_chunk(std::size_t(chunks), std::ptrdiff_t(n) > kParallelMin, [&](std::size_t c) {
-    fn(c * chunk, std::min(n, (c + 1) * chunk), partial[c]);
-  });
+  partial.assign((n + chunk - 1) / chunk, Part{});
+  for_each_range(
+      n, chunk, std::ptrdiff_t(n) > kParallelMin,
+      [&](std::size_t c, std::size_t begin, std::size_t end) { fn(begin, end, partial[c]); });
   Part total{};
   for (const Part& part : partial) total += part;
   return total;

@@ -412,10 +412,9 @@ void CcpProblem::scatter_bodies_on(const double* P, ConstSpan x, bool add_free,
   // whether the others run (`only`: the listed bodies alone).
   const std::size_t bodies = only ? only->size() : std::size_t(nb), chunk = std::size_t(kReduceChunk);
   auto body = [&](std::size_t i) { return only ? std::size_t((*only)[i]) : i; };
-  for_each_chunk((bodies + chunk - 1) / chunk, std::ptrdiff_t(bodies) > kParallelMin,
-                 [&](std::size_t c) {
-                   for (std::size_t i = c * chunk; i < std::min(bodies, (c + 1) * chunk); ++i)
-                     one_body(body(i));
+  for_each_range(bodies, chunk, std::ptrdiff_t(bodies) > kParallelMin,
+                 [&](std::size_t, std::size_t begin, std::size_t end) {
+                   for (std::size_t i = begin; i < end; ++i) one_body(body(i));
                  });
   add_row_impulses(x, dv, dw, only);
 }

@@ -241,14 +241,15 @@ std::size_t Sleep::update(const Model& model, const Bodies& bodies, const Contac
   // the spatially ordered arrays (on the drum): for_each_chunk evens the
   // threads' shares out. Each particle's outcome is its own; the count is
   // an integer sum.
-  const std::size_t n = p.size(), chunks = (n + kUpdateChunk - 1) / kUpdateChunk;
+  const std::size_t n = p.size();
   std::atomic<std::size_t> asleep = 0;
-  for_each_chunk(chunks, std::ptrdiff_t(n) > kParallelMin, [&](std::size_t c) {
-    std::size_t count = 0;
-    for (std::size_t i = c * kUpdateChunk; i < std::min(n, (c + 1) * kUpdateChunk); ++i)
-      count += update_one(model, bodies, p, i) ? 1 : 0;
-    asleep.fetch_add(count, std::memory_order_relaxed);
-  });
+  for_each_range(n, kUpdateChunk, std::ptrdiff_t(n) > kParallelMin,
+                 [&](std::size_t, std::size_t begin, std::size_t end) {
+                   std::size_t count = 0;
+                   for (std::size_t i = begin; i < end; ++i)
+                     count += update_one(model, bodies, p, i) ? 1 : 0;
+                   asleep.fetch_add(count, std::memory_order_relaxed);
+                 });
   return asleep.load(std::memory_order_relaxed);
 }
 

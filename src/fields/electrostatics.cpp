@@ -254,11 +254,11 @@ void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
   find_touches(model, contacts, bodies, p);
   // The particles are ordered in space and those on the drum cost most
   // (image pull, charging): for_each_chunk evens the threads' shares out.
-  const std::size_t n = p.size(), chunks = (n + kUpdateChunk - 1) / kUpdateChunk;
-  for_each_chunk(chunks, std::ptrdiff_t(n) > kParallelMin, [&](std::size_t ch) {
-    for (std::size_t i = ch * kUpdateChunk; i < std::min(n, (ch + 1) * kUpdateChunk); ++i)
-      update(model, p, i, contacts, h);
-  });
+  const std::size_t n = p.size();
+  for_each_range(n, kUpdateChunk, std::ptrdiff_t(n) > kParallelMin,
+                 [&](std::size_t, std::size_t begin, std::size_t end) {
+                   for (std::size_t i = begin; i < end; ++i) update(model, p, i, contacts, h);
+                 });
 }
 
 // This step's touches, from the contact list (body contacts name the body
