@@ -89,11 +89,11 @@ void for_each_range(std::size_t n, std::size_t chunk, bool parallel, Fn&& fn) {
                  [&](std::size_t c) { fn(c, c * chunk, std::min(n, (c + 1) * chunk)); });
 }
 
-// fn(begin, end) over [0, n) in fixed chunks of `chunk` items, on the
-// threads, each chunk's bounds moved forward past any run they would cut
-// (items i - 1 and i with same(i - 1, i) are of one run): every run is in
-// one chunk, so a run's items may write to one place without a race, and
-// the chunks do not depend on the threads.
+// fn(begin, end) over [0, n) in fixed chunks of `chunk` items, by
+// for_each_chunk, each chunk's bounds moved forward past any run they
+// would cut (items i - 1 and i with same(i - 1, i) are of one run): every
+// run is in one chunk, so a run's items may write to one place without a
+// race, and the chunks do not depend on the threads.
 template <class Same, class Fn>
 void for_each_run_chunk(std::size_t n, std::size_t chunk, Same same, Fn fn) {
   const std::size_t chunks = (n + chunk - 1) / chunk;
@@ -102,8 +102,7 @@ void for_each_run_chunk(std::size_t n, std::size_t chunk, Same same, Fn fn) {
     while (i > 0 && i < n && same(i - 1, i)) ++i;
     return i;
   };
-#pragma omp parallel for schedule(static) if (chunks > 1)
-  for (std::size_t c = 0; c < chunks; ++c) fn(bound(c), bound(c + 1));
+  for_each_chunk(chunks, true, [&](std::size_t c) { fn(bound(c), bound(c + 1)); });
 }
 
 // v[i] becomes v[0] + ... + v[i - 1] (v[0] becomes 0), in parallel over

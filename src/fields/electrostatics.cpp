@@ -61,8 +61,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Contacts per chunk of find_touches; fixed, so the chunks do not depend on
 // the threads.
 constexpr std::size_t kTouchChunk = 4096;
-// Particles per chunk of the charge and force update.
-constexpr std::size_t kUpdateChunk = 256;
+// Particles per chunk of the per-particle passes.
+constexpr std::size_t kParticleChunk = 256;
 
 // Flat shapes (ShapeElectrics): at least this many thicknesses wide both
 // ways across their thinnest principal axis, so t/a <= 2/1.5 = 1.33, inside
@@ -255,7 +255,7 @@ void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
   // The particles are ordered in space and those on the drum cost most
   // (image pull, charging): for_each_chunk evens the threads' shares out.
   const std::size_t n = p.size();
-  for_each_range(n, kUpdateChunk, std::ptrdiff_t(n) > kParallelMin,
+  for_each_range(n, kParticleChunk, std::ptrdiff_t(n) > kParallelMin,
                  [&](std::size_t, std::size_t begin, std::size_t end) {
                    for (std::size_t i = begin; i < end; ++i) update(model, p, i, contacts, h);
                  });
@@ -291,14 +291,13 @@ void ElectrostaticsStage::find_touches(const Model& model, const Contacts& c, co
   // it listed: it touches it where its nearest sphere does, which is
   // where its closest contact was.
   carried_.resize(np);
-  const auto n = std::ptrdiff_t(np);
-#pragma omp parallel for schedule(static) if (n > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < n; ++s) {
-    const auto i = std::size_t(s);
-    carried_[i] = p.carrier[i] == spec_.drum_body
-                      ? nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i)
-                      : DrumGap{};
-  }
+  for_each_range(np, kParticleChunk, std::ptrdiff_t(np) > kParallelMin,
+                 [&](std::size_t, std::size_t begin, std::size_t end) {
+                   for (std::size_t i = begin; i < end; ++i)
+                     carried_[i] = p.carrier[i] == spec_.drum_body
+                                       ? nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i)
+                                       : DrumGap{};
+                 });
 }
 
 // Contact k of particle c.body_b[k] with the drum or the brush, into its
