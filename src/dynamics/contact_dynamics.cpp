@@ -27,6 +27,18 @@ Quat advance(const Quat& q, const Vec3& w, double h) {
 // v_free and the problem keeps only the joints' rows.
 const Contacts kNoContacts;
 
+// fn(i) for the particles [0, n) in fixed chunks, by for_each_chunk: the
+// sleepers, which cost least, lie together in the spatially ordered
+// arrays, so static halves would leave one thread waiting.
+template <class Fn>
+void for_each_particle_chunk(std::size_t n, Fn&& fn) {
+  constexpr std::size_t kChunk = 256;
+  for_each_range(n, kChunk, std::ptrdiff_t(n) > kParallelMin,
+                 [&](std::size_t, std::size_t begin, std::size_t end) {
+                   for (std::size_t i = begin; i < end; ++i) fn(i);
+                 });
+}
+
 // The DEM stability margin: the step against the smallest Rayleigh time.
 constexpr double kRayleighFraction = 0.2;
 
@@ -51,13 +63,11 @@ void ContactDynamics::build_solver_bodies(const Model& m, const State& state) {
   const std::size_t np = p.size(), nb = m.bodies.size();
   SolverBodies& B = solver_bodies_;
   B.resize(np + nb);
-#pragma omp parallel for schedule(static) if (std::ptrdiff_t(np) > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(np); ++s) {
-    const auto i = std::size_t(s);
+  for_each_particle_chunk(np, [&](std::size_t i) {
     B.x[i] = p.position[i];
     if (p.asleep(i)) {
       prescribed_body(B, i, p.velocity[i], p.angular_velocity[i]);
-      continue;
+      return;
     }
     B.v[i] = p.velocity[i];
     B.w[i] = p.angular_velocity[i];
@@ -65,7 +75,7 @@ void ContactDynamics::build_solver_bodies(const Model& m, const State& state) {
     B.inv_inertia[i] = world_inverse_inertia(p.orientation[i], p.inv_inertia[i]);
     B.v_free[i] = p.velocity[i] + h * (m.gravity + p.inv_mass[i] * p.force[i]);
     B.w_free[i] = p.angular_velocity[i] + h * (B.inv_inertia[i] * p.torque[i]);
-  }
+  });
   for (std::size_t k = 0; k < nb; ++k) {
     const RigidBody& rb = m.bodies[k];
     const std::size_t i = np + k;
@@ -152,15 +162,13 @@ void ContactDynamics::integrate(const Model& model, State& state, const Contacts
   Particles& p = state.particles;
   Bodies& bodies = state.bodies;
   const std::size_t np = p.size();
-#pragma omp parallel for schedule(static) if (std::ptrdiff_t(np) > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(np); ++s) {
-    const auto i = std::size_t(s);
+  for_each_particle_chunk(np, [&](std::size_t i) {
     p.velocity[i] = v[i];
     p.angular_velocity[i] = w[i];
-    if (p.asleep(i)) continue;  // its carrier moves it (Sleep::carry)
+    if (p.asleep(i)) return;  // its carrier moves it (Sleep::carry)
     p.position[i] += h * v[i];
     p.orientation[i] = advance(p.orientation[i], w[i], h);
-  }
+  });
   for (std::size_t k = 0; k < model.bodies.size(); ++k) {
     if (model.bodies[k].kind != BodyKind::Dynamic) continue;
     bodies.velocity[k] = v[np + k];
