@@ -89,6 +89,19 @@ void for_each_range(std::size_t n, std::size_t chunk, bool parallel, Fn&& fn) {
                  [&](std::size_t c) { fn(c, c * chunk, std::min(n, (c + 1) * chunk)); });
 }
 
+// fn(i) for every i in [0, n), in fixed chunks of `chunk` items by
+// for_each_range, on the threads above kParallelMin items. Particles and
+// contacts are ordered in space, so the costly ones (on the drum, asleep,
+// in a pile) come in runs: static halves would leave one thread waiting
+// where for_each_chunk hands it the rest of the other's share.
+template <class Fn>
+void for_each_index(std::size_t n, std::size_t chunk, Fn&& fn) {
+  for_each_range(n, chunk, std::ptrdiff_t(n) > kParallelMin,
+                 [&](std::size_t, std::size_t begin, std::size_t end) {
+                   for (std::size_t i = begin; i < end; ++i) fn(i);
+                 });
+}
+
 // fn(begin, end) over [0, n) in fixed chunks of `chunk` items, by
 // for_each_chunk, each chunk's bounds moved forward past any run they
 // would cut (items i - 1 and i with same(i - 1, i) are of one run): every

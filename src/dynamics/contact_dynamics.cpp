@@ -27,17 +27,9 @@ Quat advance(const Quat& q, const Vec3& w, double h) {
 // v_free and the problem keeps only the joints' rows.
 const Contacts kNoContacts;
 
-// fn(i) for the particles [0, n) in fixed chunks, by for_each_chunk: the
-// sleepers, which cost least, lie together in the spatially ordered
-// arrays, so static halves would leave one thread waiting.
-template <class Fn>
-void for_each_particle_chunk(std::size_t n, Fn&& fn) {
-  constexpr std::size_t kChunk = 256;
-  for_each_range(n, kChunk, std::ptrdiff_t(n) > kParallelMin,
-                 [&](std::size_t, std::size_t begin, std::size_t end) {
-                   for (std::size_t i = begin; i < end; ++i) fn(i);
-                 });
-}
+// Particles per chunk of the per-particle passes (for_each_index: the
+// sleepers, which cost least, lie together).
+constexpr std::size_t kParticleChunk = 256;
 
 // The DEM stability margin: the step against the smallest Rayleigh time.
 constexpr double kRayleighFraction = 0.2;
@@ -63,7 +55,7 @@ void ContactDynamics::build_solver_bodies(const Model& m, const State& state) {
   const std::size_t np = p.size(), nb = m.bodies.size();
   SolverBodies& B = solver_bodies_;
   B.resize(np + nb);
-  for_each_particle_chunk(np, [&](std::size_t i) {
+  for_each_index(np, kParticleChunk, [&](std::size_t i) {
     B.x[i] = p.position[i];
     if (p.asleep(i)) {
       prescribed_body(B, i, p.velocity[i], p.angular_velocity[i]);
@@ -162,7 +154,7 @@ void ContactDynamics::integrate(const Model& model, State& state, const Contacts
   Particles& p = state.particles;
   Bodies& bodies = state.bodies;
   const std::size_t np = p.size();
-  for_each_particle_chunk(np, [&](std::size_t i) {
+  for_each_index(np, kParticleChunk, [&](std::size_t i) {
     p.velocity[i] = v[i];
     p.angular_velocity[i] = w[i];
     if (p.asleep(i)) return;  // its carrier moves it (Sleep::carry)

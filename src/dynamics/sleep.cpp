@@ -237,10 +237,8 @@ bool Sleep::held(const Model& model, const Bodies& bodies, const Particles& p, s
 std::size_t Sleep::update(const Model& model, const Bodies& bodies, const Contacts& contacts,
                           const std::vector<Vec3>& impulses, Particles& p) {
   read_contacts(contacts, impulses, p.size());
-  // The sleepers, whose support is looked for every step, lie together in
-  // the spatially ordered arrays (on the drum): for_each_chunk evens the
-  // threads' shares out. Each particle's outcome is its own; the count is
-  // an integer sum.
+  // In chunks as for_each_index runs them (the sleepers, whose support is
+  // looked for every step, lie together); the count is an integer sum.
   const std::size_t n = p.size();
   std::atomic<std::size_t> asleep = 0;
   for_each_range(n, kUpdateChunk, std::ptrdiff_t(n) > kParallelMin,

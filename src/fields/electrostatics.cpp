@@ -61,7 +61,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Contacts per chunk of find_touches; fixed, so the chunks do not depend on
 // the threads.
 constexpr std::size_t kTouchChunk = 4096;
-// Particles per chunk of the per-particle passes.
+// Particles per chunk of the per-particle passes (for_each_index: those on
+// the drum, which cost most, lie together).
 constexpr std::size_t kParticleChunk = 256;
 
 // Flat shapes (ShapeElectrics): at least this many thicknesses wide both
@@ -252,13 +253,8 @@ void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
                                 const Bodies& bodies, Particles& p) {
   const double h = model.step;
   find_touches(model, contacts, bodies, p);
-  // The particles are ordered in space and those on the drum cost most
-  // (image pull, charging): for_each_chunk evens the threads' shares out.
-  const std::size_t n = p.size();
-  for_each_range(n, kParticleChunk, std::ptrdiff_t(n) > kParallelMin,
-                 [&](std::size_t, std::size_t begin, std::size_t end) {
-                   for (std::size_t i = begin; i < end; ++i) update(model, p, i, contacts, h);
-                 });
+  for_each_index(p.size(), kParticleChunk,
+                 [&](std::size_t i) { update(model, p, i, contacts, h); });
 }
 
 // This step's touches, from the contact list (body contacts name the body
@@ -291,13 +287,11 @@ void ElectrostaticsStage::find_touches(const Model& model, const Contacts& c, co
   // it listed: it touches it where its nearest sphere does, which is
   // where its closest contact was.
   carried_.resize(np);
-  for_each_range(np, kParticleChunk, std::ptrdiff_t(np) > kParallelMin,
-                 [&](std::size_t, std::size_t begin, std::size_t end) {
-                   for (std::size_t i = begin; i < end; ++i)
-                     carried_[i] = p.carrier[i] == spec_.drum_body
-                                       ? nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i)
-                                       : DrumGap{};
-                 });
+  for_each_index(np, kParticleChunk, [&](std::size_t i) {
+    carried_[i] = p.carrier[i] == spec_.drum_body
+                      ? nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i)
+                      : DrumGap{};
+  });
 }
 
 // Contact k of particle c.body_b[k] with the drum or the brush, into its
