@@ -568,7 +568,7 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMe
   // order would have each key (ContactMemory::find_at); the chunks with a
   // key found elsewhere or not at all again by the hash table, built on
   // the threads between the two passes only if one is needed.
-  const std::size_t nc = keys.size(), chunk = std::size_t(kReduceChunk);
+  const std::size_t nc = keys.size(), chunk = kReduceChunk;
   const std::size_t chunks = (nc + chunk - 1) / chunk;
   static thread_local std::vector<std::uint8_t> missed_buffer;
   std::vector<std::uint8_t>& missed = missed_buffer;  // (named outside the region)

@@ -78,11 +78,6 @@ using AlignedVector = std::vector<T, CacheAligned<T>>;
 using Span = std::span<double>;
 using ConstSpan = std::span<const double>;
 
-// Contacts per chunk of a reduction; fixed, so sums do not depend on threads.
-// Small, so that two threads share even a few thousand contacts evenly (in
-// chunks of 2,048, 5,000 contacts split 4,096 to 904).
-inline constexpr std::ptrdiff_t kReduceChunk = 256;
-
 // Bodies as the solver sees them: particles, then machine bodies.
 struct SolverBodies {
   std::vector<Vec3> x;               // centre of mass (lever arms)
@@ -442,26 +437,6 @@ inline void project_cone(double mu, double& gn, double& gt1, double& gt2) {
   const double scale = mu * along * q;
   gt1 *= scale;
   gt2 *= scale;
-}
-
-// fn(begin, end, part) over fixed chunks of n contacts in parallel, the
-// parts added in chunk order: the same bits for any thread count. Part needs
-// += and a default constructor that gives the neutral element.
-template <class Part, class ChunkFn>
-Part reduce_chunks(std::size_t n, ChunkFn fn) {
-  const auto chunk = std::size_t(kReduceChunk);
-  // Grows only: one buffer per instantiation and thread of the caller.
-  // (Named through a reference: inside the parallel loop the thread_local
-  // itself would be each worker's own, empty, instance.)
-  static thread_local std::vector<Part> buffer;
-  std::vector<Part>& partial = buffer;
-  partial.assign((n + chunk - 1) / chunk, Part{});
-  for_each_range(
-      n, chunk, std::ptrdiff_t(n) > kParallelMin,
-      [&](std::size_t c, std::size_t begin, std::size_t end) { fn(begin, end, partial[c]); });
-  Part total{};
-  for (const Part& part : partial) total += part;
-  return total;
 }
 
 template <class Part, class ContactFn, class RowFn>

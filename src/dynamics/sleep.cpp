@@ -21,8 +21,6 @@ constexpr double kReserve = 0.5;
 constexpr double kPushUnit = 1e-21;
 constexpr double kPushCap = 1e-4;
 constexpr std::int32_t kNone = -1, kSeveral = -2;
-// Particles per chunk of update().
-constexpr std::size_t kUpdateChunk = 256;
 
 void wake(Particles& p, std::size_t i) {
   p.carrier[i] = Particles::kAwake;
@@ -237,18 +235,13 @@ bool Sleep::held(const Model& model, const Bodies& bodies, const Particles& p, s
 std::size_t Sleep::update(const Model& model, const Bodies& bodies, const Contacts& contacts,
                           const std::vector<Vec3>& impulses, Particles& p) {
   read_contacts(contacts, impulses, p.size());
-  // In chunks as for_each_index runs them (the sleepers, whose support is
-  // looked for every step, lie together); the count is an integer sum.
-  const std::size_t n = p.size();
-  std::atomic<std::size_t> asleep = 0;
-  for_each_range(n, kUpdateChunk, std::ptrdiff_t(n) > kParallelMin,
-                 [&](std::size_t, std::size_t begin, std::size_t end) {
-                   std::size_t count = 0;
-                   for (std::size_t i = begin; i < end; ++i)
-                     count += update_one(model, bodies, p, i) ? 1 : 0;
-                   asleep.fetch_add(count, std::memory_order_relaxed);
-                 });
-  return asleep.load(std::memory_order_relaxed);
+  // In fixed chunks, balanced between the threads (the sleepers, whose
+  // support is looked for every step, lie together).
+  return reduce_chunks<std::size_t>(p.size(),
+                                    [&](std::size_t begin, std::size_t end, std::size_t& asleep) {
+                                      for (std::size_t i = begin; i < end; ++i)
+                                        asleep += update_one(model, bodies, p, i) ? 1 : 0;
+                                    });
 }
 
 bool Sleep::update_one(const Model& model, const Bodies& bodies, Particles& p,

@@ -65,26 +65,29 @@ Crossing deepest_crossing(const Model& m, const Particles& p, const Bodies& bodi
 std::size_t stop_at_unlisted_walls(const Model& model, const Particles& p, const Bodies& bodies,
                                    std::span<const double> envelope, SolverBodies& B) {
   const double h = model.step;
-  std::size_t stopped = 0;
-  const auto n = std::ptrdiff_t(p.size());
-#pragma omp parallel for schedule(static) reduction(+ : stopped) if (n > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < n; ++s) {
-    const auto i = std::size_t(s);
-    if (p.asleep(i)) continue;
+  // Particle i's stops; whether it was stopped.
+  auto stop = [&](std::size_t i) {
+    if (p.asleep(i)) return false;
     Vec3& v = B.v[i];
     const Vec3& w = B.w[i];
     // Within its envelope every surface it can reach was listed.
-    if ((v.norm() + w.norm() * bounding_radius(model, p, i)) * h <= envelope[i]) continue;
-    bool stop = false;
+    if ((v.norm() + w.norm() * bounding_radius(model, p, i)) * h <= envelope[i]) return false;
+    bool stopped = false;
     for (int pass = 0; pass < kPasses; ++pass) {
       const Crossing c = deepest_crossing(model, p, bodies, i, v, w);
       if (!(c.depth > 0.0)) break;
       v += c.normal * (c.depth / h);
-      stop = true;
+      stopped = true;
     }
-    stopped += stop ? 1 : 0;
-  }
-  return stopped;
+    return stopped;
+  };
+  // In fixed chunks, balanced between the threads: the fast particles,
+  // the only ones looked at, come in runs.
+  return reduce_chunks<std::size_t>(p.size(),
+                                    [&](std::size_t begin, std::size_t end, std::size_t& stopped) {
+                                      for (std::size_t i = begin; i < end; ++i)
+                                        stopped += stop(i) ? 1 : 0;
+                                    });
 }
 
 }  // namespace ces
