@@ -141,7 +141,7 @@ TEST(Engine, ParallelScanSelectAndRunChunksMatchTheirSerialDefinitions) {
       EXPECT_EQ(chunks.load(), (n + 99) / 100) << n << " items";
       for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(ranged[i].load(), 1) << i;
       std::vector<std::atomic<int>> indexed(n);
-      for_each_index(n, 100, [&](std::size_t i) { indexed[i].fetch_add(1); });
+      for_each_index(n, [&](std::size_t i) { indexed[i].fetch_add(1); });
       for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(indexed[i].load(), 1) << i;
     }
   }

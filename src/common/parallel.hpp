@@ -89,24 +89,24 @@ void for_each_range(std::size_t n, std::size_t chunk, bool parallel, Fn&& fn) {
                  [&](std::size_t c) { fn(c, c * chunk, std::min(n, (c + 1) * chunk)); });
 }
 
-// fn(i) for every i in [0, n), in fixed chunks of `chunk` items by
+// Items (contacts, bodies, particles) per chunk of a reduction or of
+// for_each_index; fixed, so sums do not depend on threads. Small, so that
+// two threads share even a few thousand contacts evenly (in chunks of
+// 2,048, 5,000 contacts split 4,096 to 904).
+inline constexpr std::size_t kReduceChunk = 256;
+
+// fn(i) for every i in [0, n), in fixed chunks of kReduceChunk items by
 // for_each_range, on the threads above kParallelMin items. Particles and
 // contacts are ordered in space, so the costly ones (on the drum, asleep,
 // in a pile) come in runs: static halves would leave one thread waiting
 // where for_each_chunk hands it the rest of the other's share.
 template <class Fn>
-void for_each_index(std::size_t n, std::size_t chunk, Fn&& fn) {
-  for_each_range(n, chunk, std::ptrdiff_t(n) > kParallelMin,
+void for_each_index(std::size_t n, Fn&& fn) {
+  for_each_range(n, kReduceChunk, std::ptrdiff_t(n) > kParallelMin,
                  [&](std::size_t, std::size_t begin, std::size_t end) {
                    for (std::size_t i = begin; i < end; ++i) fn(i);
                  });
 }
-
-// Items (contacts, bodies, particles) per chunk of a reduction; fixed, so
-// sums do not depend on threads. Small, so that two threads share even a
-// few thousand contacts evenly (in chunks of 2,048, 5,000 contacts split
-// 4,096 to 904).
-inline constexpr std::size_t kReduceChunk = 256;
 
 // fn(begin, end, part) over fixed chunks of n items in parallel (by
 // for_each_range), the parts added in chunk order: the same bits for any

@@ -568,30 +568,28 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMe
   // order would have each key (ContactMemory::find_at); the chunks with a
   // key found elsewhere or not at all again by the hash table, built on
   // the threads between the two passes only if one is needed.
-  const std::size_t nc = keys.size(), chunk = kReduceChunk;
-  const std::size_t chunks = (nc + chunk - 1) / chunk;
+  const std::size_t nc = keys.size();
   static thread_local std::vector<std::uint8_t> missed_buffer;
   std::vector<std::uint8_t>& missed = missed_buffer;  // (named outside the region)
-  missed.assign(chunks, 0);
+  missed.assign((nc + kReduceChunk - 1) / kReduceChunk, 0);
   auto pass = [&](bool hashed) {
-#pragma omp parallel for schedule(static) if (std::ptrdiff_t(nc) > kParallelMin)
-    for (std::size_t ch = 0; ch < chunks; ++ch) {
-      if (hashed && !missed[ch]) continue;
-      const std::size_t begin = ch * chunk, end = std::min(nc, begin + chunk);
+    auto chunk = [&](std::size_t ch, std::size_t begin, std::size_t end) {
+      if (hashed && !missed[ch]) return;
       std::size_t cursor = begin;
       for (std::size_t k = begin; k < end; ++k) {
         const Vec3* P =
             hashed ? previous.find(keys[k], cursor) : previous.find_at(keys[k], cursor);
         if (!P && !hashed) {
           missed[ch] = 1;  // the chunk is looked up again, whole
-          break;
+          return;
         }
         const Frame F = frame(k);
         x[3 * k] = P ? F.n.dot(*P) : 0.0;
         x[3 * k + 1] = P ? F.t1.dot(*P) : 0.0;
         x[3 * k + 2] = P ? F.t2.dot(*P) : 0.0;
       }
-    }
+    };
+    for_each_range(nc, kReduceChunk, std::ptrdiff_t(nc) > kParallelMin, chunk);
   };
   pass(false);
   if (std::find(missed.begin(), missed.end(), 1) != missed.end()) {

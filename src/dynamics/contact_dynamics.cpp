@@ -27,10 +27,6 @@ Quat advance(const Quat& q, const Vec3& w, double h) {
 // v_free and the problem keeps only the joints' rows.
 const Contacts kNoContacts;
 
-// Particles per chunk of the per-particle passes (for_each_index: the
-// sleepers, which cost least, lie together).
-constexpr std::size_t kParticleChunk = 256;
-
 // The DEM stability margin: the step against the smallest Rayleigh time.
 constexpr double kRayleighFraction = 0.2;
 
@@ -55,7 +51,7 @@ void ContactDynamics::build_solver_bodies(const Model& m, const State& state) {
   const std::size_t np = p.size(), nb = m.bodies.size();
   SolverBodies& B = solver_bodies_;
   B.resize(np + nb);
-  for_each_index(np, kParticleChunk, [&](std::size_t i) {
+  for_each_index(np, [&](std::size_t i) {
     B.x[i] = p.position[i];
     if (p.asleep(i)) {
       prescribed_body(B, i, p.velocity[i], p.angular_velocity[i]);
@@ -154,7 +150,7 @@ void ContactDynamics::integrate(const Model& model, State& state, const Contacts
   Particles& p = state.particles;
   Bodies& bodies = state.bodies;
   const std::size_t np = p.size();
-  for_each_index(np, kParticleChunk, [&](std::size_t i) {
+  for_each_index(np, [&](std::size_t i) {
     p.velocity[i] = v[i];
     p.angular_velocity[i] = w[i];
     if (p.asleep(i)) return;  // its carrier moves it (Sleep::carry)

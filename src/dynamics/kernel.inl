@@ -410,9 +410,9 @@ void CcpProblem::scatter_bodies_on(const double* P, ConstSpan x, bool add_free,
   // Chunks of bodies, as the contact passes' (reduce_chunks): each body's
   // sum is its own, so the bits do not depend on who runs it, nor on
   // whether the others run (`only`: the listed bodies alone).
-  const std::size_t bodies = only ? only->size() : std::size_t(nb), chunk = kReduceChunk;
+  const std::size_t bodies = only ? only->size() : std::size_t(nb);
   auto body = [&](std::size_t i) { return only ? std::size_t((*only)[i]) : i; };
-  for_each_range(bodies, chunk, std::ptrdiff_t(bodies) > kParallelMin,
+  for_each_range(bodies, kReduceChunk, std::ptrdiff_t(bodies) > kParallelMin,
                  [&](std::size_t, std::size_t begin, std::size_t end) {
                    for (std::size_t i = begin; i < end; ++i) one_body(body(i));
                  });

@@ -61,9 +61,6 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Contacts per chunk of find_touches; fixed, so the chunks do not depend on
 // the threads.
 constexpr std::size_t kTouchChunk = 4096;
-// Particles per chunk of the per-particle passes (for_each_index: those on
-// the drum, which cost most, lie together).
-constexpr std::size_t kParticleChunk = 256;
 
 // Flat shapes (ShapeElectrics): at least this many thicknesses wide both
 // ways across their thinnest principal axis, so t/a <= 2/1.5 = 1.33, inside
@@ -253,8 +250,7 @@ void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
                                 const Bodies& bodies, Particles& p) {
   const double h = model.step;
   find_touches(model, contacts, bodies, p);
-  for_each_index(p.size(), kParticleChunk,
-                 [&](std::size_t i) { update(model, p, i, contacts, h); });
+  for_each_index(p.size(), [&](std::size_t i) { update(model, p, i, contacts, h); });
 }
 
 // This step's touches, from the contact list (body contacts name the body
@@ -287,7 +283,7 @@ void ElectrostaticsStage::find_touches(const Model& model, const Contacts& c, co
   // it listed: it touches it where its nearest sphere does, which is
   // where its closest contact was.
   carried_.resize(np);
-  for_each_index(np, kParticleChunk, [&](std::size_t i) {
+  for_each_index(np, [&](std::size_t i) {
     carried_[i] = p.carrier[i] == spec_.drum_body
                       ? nearest_drum(model.shapes[std::size_t(p.shape[i])], p, i)
                       : DrumGap{};
