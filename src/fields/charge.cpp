@@ -126,9 +126,11 @@ double thin_flake_saturation_charge(const FlatFlake& f, double eps_r_particle, d
   return (4.0 / 3.0) * eps_r_particle * kEps0 * std::abs(field) * a * a * a / f.thickness;
 }
 
-double flake_saturation_charge(const FlatFlake& f, double eps_r_particle, double field) {
+double flake_saturation_charge(const FlatFlake& f, double eps_r_particle, double field,
+                               double gap) {
   return flake_ratio(f.thinness(), &FlakeRow::insulator_charge) *
-         thin_flake_saturation_charge(f, eps_r_particle, field);
+         thin_flake_saturation_charge(f, eps_r_particle, field) /
+         (1.0 + eps_r_particle * std::max(0.0, gap) / f.thickness);
 }
 
 // Per unit ε0 E² a²: the total pull P = εr² g/(π x²) + top, the charge

@@ -86,7 +86,12 @@ struct FlatFlake {
 // ratio the axisymmetric Laplace solve gives for its t/a (tabulated; 1.06
 // at t/a = 0.01, 1.93 at 0.36, 3.07 at 1; the solve is in
 // tests/flake_laplace_test.cpp). Sign: that of the corona ions.
-double flake_saturation_charge(const FlatFlake& flake, double eps_r_particle, double field);
+// Raised by `gap` off the drum, its face still parallel to it, the flake
+// and the air under it hold the face's flux in series, which divides σ by
+// 1 + εr gap/t (valid for gap + t << a; for a thick flake it scales the
+// Laplace solve's charge, rim included, by the same factor).
+double flake_saturation_charge(const FlatFlake& flake, double eps_r_particle, double field,
+                               double gap = 0.0);
 double thin_flake_saturation_charge(const FlatFlake& flake, double eps_r_particle, double field);
 
 // κ of the flat image law (flat_image_force) for an insulating flake of

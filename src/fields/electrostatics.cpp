@@ -229,12 +229,10 @@ struct ElectrostaticsStage::Site {
   double current_density;   // J of the corona bands there
   bool active;              // |z| <= half-width
   const Vec3* drum_normal;  // out of the drum at the touching contact, or null
-  const Vec3* near_normal;  // out of the drum at the closest listed contact, or null
-  DrumGap image;            // the drum surface nearest the particle, for the image pull
+  DrumGap image;            // the drum surface nearest the particle: its charging and pull
   bool brush;               // touches the brush
   double radius;            // sphere of the particle's volume
   FlatFlake flake;          // a flat shape's face and thickness; face area 0 for a compact one
-  bool flat_near;           // lying flat over the closest drum contact
   bool flat_touch;          // lying flat on the touching drum contact
   bool flat_image;          // lying flat over the nearest drum surface
 };
@@ -255,10 +253,7 @@ void ElectrostaticsStage::apply(const Model& model, const Contacts& contacts,
 
 // This step's touches, from the contact list (body contacts name the body
 // first and point their normal out of it). A cluster touching the drum
-// with several spheres uses its closest contact. Also the closest drum
-// contact in the list whether touching or not (within the collision
-// envelope: a quarter of the sphere radius plus one step's travel): a
-// flake lying flat over it charges as a flat flake. In parallel: a
+// with several spheres uses its closest contact. In parallel: a
 // particle's contacts with one body follow each other in the list
 // (Collider::narrowphase), so each particle's entries are written by the
 // one chunk that holds that run.
@@ -266,7 +261,6 @@ void ElectrostaticsStage::find_touches(const Model& model, const Contacts& c, co
                                        const Particles& p) {
   const std::size_t np = p.size();
   drum_contact_.assign(np, -1);
-  near_contact_.assign(np, -1);
   brush_touch_.assign(np, 0);
   const int drum = int(np) + spec_.drum_body;
   const int brush = spec_.brush_body ? int(np) + *spec_.brush_body : -1;
@@ -295,10 +289,6 @@ void ElectrostaticsStage::find_touches(const Model& model, const Contacts& c, co
 void ElectrostaticsStage::touch(const Model& model, const Contacts& c, std::size_t k,
                                 bool on_drum, const Bodies& bodies, const Particles& p) {
   const auto i = std::size_t(c.body_b[k]);
-  if (on_drum) {
-    std::int32_t& near = near_contact_[i];
-    if (near < 0 || c.gap[k] < c.gap[std::size_t(near)]) near = std::int32_t(k);
-  }
   const std::size_t body = std::size_t(c.body_a[k]) - p.size();
   if (c.gap[k] > touch_tolerance(model, c, k, bodies, body, p, i)) return;
   if (!on_drum) {
@@ -367,16 +357,16 @@ ElectrostaticsStage::Site ElectrostaticsStage::site(const Model& model, const Pa
                               const Contacts& c) const {
   const Vec3& x = p.position[i];
   const bool active = std::abs(x.z()) <= spec_.drum.half_width;
-  const std::int32_t k = drum_contact_[i], kn = near_contact_[i];
+  const std::int32_t k = drum_contact_[i];
   const Vec3* touch = k >= 0 ? &c.normal[std::size_t(k)] : nullptr;
-  const Vec3* near = kn >= 0 ? &c.normal[std::size_t(kn)] : nullptr;
-  if (carried_[i].found()) touch = near = &carried_[i].normal;
+  if (carried_[i].found()) touch = &carried_[i].normal;
   const ShapeElectrics& shape = shapes_[std::size_t(p.shape[i])];
   const double volume = p.mass[i] / density_[std::size_t(p.material[i])];
   const double area = p.scale[i] * p.scale[i] * shape.face_area;
   double j = 0.0;
   const Vec3 e = active ? field_at(x, j) : Vec3::Zero();
-  // Only an insulating part on the drum's width feels the image pull.
+  // Only an insulating part on the drum's width charges and feels the
+  // image pull.
   const bool pulled = active && material(p, i).metal_fraction < 1.0;
   // A carried particle's nearest drum is find_touches' (the same positions).
   const bool carried = p.carrier[i] == spec_.drum_body;
@@ -388,12 +378,10 @@ ElectrostaticsStage::Site ElectrostaticsStage::site(const Model& model, const Pa
           j,
           active,
           touch,
-          near,
           image,
           brush_touch_[i] != 0,
           equal_volume_radius(volume),
           {area, area > 0.0 ? volume / area : 0.0},
-          lies_flat(shape, p.orientation[i], near),
           lies_flat(shape, p.orientation[i], touch),
           image.found() && lies_flat(shape, p.orientation[i], &image.normal)};
 }
@@ -427,11 +415,16 @@ Vec3 ElectrostaticsStage::metal_part(double& charge, const Site& at) const {
   return conductor_lift_force(charge, en) * n;
 }
 
-// Pauthenier's saturation charge magnitude in |E|: a flake's lying flat,
-// else the sphere's.
+// Pauthenier's saturation charge magnitude in |E|: the sphere's, or for a
+// flake lying flat over the drum its face's at the gap under it, where
+// that is more. The gap comes from the geometry, as the image pull's
+// does, so whether a flake charges flat does not hang on which contacts
+// the step's envelope lists; far enough off, the face's charge falls
+// below the sphere's, which then stands for the flake in flight.
 double ElectrostaticsStage::saturation_charge(const Site& at, double eps_r, double field) const {
-  if (at.flat_near) return flake_saturation_charge(at.flake, eps_r, field);
-  return pauthenier_saturation_charge(at.radius, eps_r, field);
+  const double sphere = pauthenier_saturation_charge(at.radius, eps_r, field);
+  if (!at.flat_image) return sphere;
+  return std::max(sphere, flake_saturation_charge(at.flake, eps_r, field, at.image.gap));
 }
 
 // Insulator: relaxes, charges under the corona, loses everything at the

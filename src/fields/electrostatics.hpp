@@ -44,7 +44,8 @@ namespace ces::fields {
 //  - face_area A: the shadow of its spheres on the plane across that axis,
 //    the face that lies on the drum (0.60 for the unit flake of aspect 0.2,
 //    2.10 d² in its equal-volume diameter d);
-//  - an insulator charges to flake_saturation_charge and is pulled by
+//  - an insulator charges to flake_saturation_charge at the gap under it
+//    (or the sphere's, where that is more) and is pulled by
 //    flat_image_force with flake_image_factor;
 //  - a conductor takes flat_conductor_charge and flat_conductor_lift.
 // The volume comes from the particle's mass, not from its shape: a feed
@@ -115,7 +116,8 @@ struct CoronaZone {
 //    force is Q E.
 //  - insulating part: decays by exp(−h/τ), charges in a corona zone or band
 //    (Pauthenier growth toward the flat-flake or sphere saturation charge in
-//    |E|, τ_c = 4 ε0 |E| / J), is zeroed by a touch of the brush; the force
+//    |E|, τ_c = 4 ε0 |E| / J; flat over the nearest drum surface, at the
+//    gap under it), is zeroed by a touch of the brush; the force
 //    is Q E, plus the image force along −n of its closest drum contact in
 //    this step's list (touching or within the collision envelope, gap g):
 //    the sphere law with its charge r + g from the drum, or for a flake
@@ -192,7 +194,6 @@ class ElectrostaticsStage {
   std::vector<ShapeElectrics> shapes_;      // per Model shape
   std::vector<double> density_;             // per Model material
   std::vector<std::int32_t> drum_contact_;  // per particle: touching drum contact, or -1
-  std::vector<std::int32_t> near_contact_;  // per particle: closest drum contact, or -1
   std::vector<std::uint8_t> brush_touch_;   // per particle
   std::vector<DrumGap> carried_;            // per particle asleep on the drum: its nearest drum
 };
