@@ -320,12 +320,12 @@ Vec3 ElectrostaticsStage::field_at(const Vec3& x, double& current_density) const
 }
 
 // The drum's surface nearest particle i: the gap of its sphere closest to
-// the drum's cylinder, and the outward normal there. The image pull takes
-// it from the geometry, not from the contact list: a drum contact is
-// listed only within the collision envelope (a quarter of a sphere's
-// radius plus a step's travel), which shrinks with the step, while the
-// pull reaches a flake that hops a millimetre off the drum at several
-// times its weight. Within one drum radius of the surface: farther, a
+// the drum's cylinder, and the outward normal there. The image pull and
+// the flat flake's charge take it from the geometry, not from the contact
+// list: a drum contact is listed only within the collision envelope (a
+// quarter of a sphere's radius plus a step's travel), which shrinks with
+// the step, while the pull reaches a flake that hops a millimetre off the
+// drum at several times its weight. Within one drum radius of the surface: farther, a
 // plane's image no longer stands for the cylinder, and the pull is a
 // millionth of what it is on the drum.
 DrumGap ElectrostaticsStage::nearest_drum(const ParticleShape& s, const Particles& p,
