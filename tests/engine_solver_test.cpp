@@ -70,7 +70,7 @@ TEST(Engine, ApgdKernelMatchesPlainOperations) {
   for (int k = 0; k < 13; ++k) {
     const double friction = k % 5 == 0 ? 0.0 : 0.5 + 0.4 * uniform();
     const double compliance = k == 1 || k == 6 ? 0.5e-3 : 0.0;
-    materials.push_back({"m" + std::to_string(k), 1000.0, friction, 0.0, compliance});
+    materials.push_back({std::string("m").append(std::to_string(k)), 1000.0, friction, 0.0, compliance});
   }
   const MaterialTable table(materials, {});
   Contacts c;

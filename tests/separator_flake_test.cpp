@@ -42,6 +42,17 @@ ParticleShape unit_flake() {
 }
 constexpr double kFlakeFace = 19.0 * kPi * 0.01;
 
+// The centre of the shape's lowest sphere (least y) turned by `turn`,
+// relative to its centre of mass at scale 1 (the centre of mass itself if
+// no sphere is below it): a flake of scale s stood on its rim with that
+// sphere's centre at p has its own centre at p - s lowest_sphere(...).
+Vec3 lowest_sphere(const ParticleShape& shape, const Quat& turn) {
+  Vec3 lowest = Vec3::Zero();
+  for (const Vec3& c : shape.centers)
+    if ((turn * c).y() < lowest.y()) lowest = turn * c;
+  return lowest;
+}
+
 // An FR-4 flake's model for the electrics checks: no gravity, 1 ms steps,
 // the unit flake as its last shape (a drum to be added).
 std::shared_ptr<Model> flake_model(std::vector<MaterialSpec>& mats) {
@@ -123,10 +134,9 @@ TEST(FlakeElectrics, ImageForceOfAFlakeIsTheFaceLawLyingFlat) {
   // On its rim, the outermost sphere on the drum (at 0.4 s from the centre
   // along some in-plane direction): put the centre above it.
   const Quat stood = edge;
-  Vec3 lowest = Vec3::Zero();
-  for (const Vec3& c : m->shapes.back().centers)
-    if ((stood * c).y() < lowest.y()) lowest = stood * c;
-  w.add_particle(flake, s, 1, Vec3(0.0, kDrumRadius + r, 0.05) - s * lowest, stood);
+  w.add_particle(flake, s, 1,
+                 Vec3(0.0, kDrumRadius + r, 0.05) - s * lowest_sphere(m->shapes.back(), stood),
+                 stood);
   for (double& c : w.particles().charge) c = q;
   w.set_electrostatics(electrostatics(no_field(), mats));
   ForceProbe probe;
@@ -169,10 +179,8 @@ TEST(FlakeElectrics, FlakeChargesByTheGapUnderIt) {
   w.add_particle(flake, s, 1, Vec3(0, kDrumRadius + r, 0), flat);
   w.add_particle(flake, s, 1, Vec3(0, kDrumRadius + r + near, 0.02), flat);
   w.add_particle(flake, s, 1, Vec3(0, kDrumRadius + r + far, 0.04), flat);
-  Vec3 lowest = Vec3::Zero();
-  for (const Vec3& c : shape.centers)
-    if ((stood * c).y() < lowest.y()) lowest = stood * c;
-  w.add_particle(flake, s, 1, Vec3(0, kDrumRadius + r + near, 0.06) - s * lowest, stood);
+  w.add_particle(flake, s, 1,
+                 Vec3(0, kDrumRadius + r + near, 0.06) - s * lowest_sphere(shape, stood), stood);
   ElectrostaticsSpec spec = electrostatics(reference_field(), mats);
   spec.corona = {saturation_zone()};
   w.set_electrostatics(spec);

@@ -50,7 +50,7 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
   }
   sort_entries();
 
-  const std::size_t chunks = (n + kChunk - 1) / kChunk;
+  const std::size_t chunks = chunk_count(n, kChunk);
   if (chunk_partners_.size() < chunks) chunk_partners_.resize(chunks);  // keeps capacities
   runs_.resize(n);
   // Dense regions of the flow cost more per entry: for_each_chunk evens
@@ -63,7 +63,7 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
   // whatever the chunks and threads. Where a block of particles' runs start
   // is a prefix sum over the blocks' pair counts, so that neither pass is
   // serial.
-  const std::size_t blocks = (n + kBlock - 1) / kBlock;
+  const std::size_t blocks = chunk_count(n, kBlock);
   block_first_.assign(blocks + 1, 0);
 #pragma omp parallel for schedule(static) if (blocks > 1)
   for (std::size_t b = 0; b < blocks; ++b) {

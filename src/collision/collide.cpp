@@ -255,7 +255,7 @@ void raise_to(double& target, double value) {
 template <class Fill>
 void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts& out,
                  std::size_t& used, Fill fill) {
-  const std::size_t count = (n + kChunk - 1) / kChunk;
+  const std::size_t count = chunk_count(n, kChunk);
   // Never shrink: the buffers keep their capacity from step to step.
   if (chunks.size() < count) chunks.resize(count);
   // Chunks by for_each_chunk: the particles are ordered in space, so those

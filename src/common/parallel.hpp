@@ -15,6 +15,9 @@ namespace ces {
 // thread: below it OpenMP's fork and join cost more than the threads save.
 inline constexpr std::ptrdiff_t kParallelMin = 256;
 
+// How many chunks of `size` items cover n items, the last one short.
+constexpr std::size_t chunk_count(std::size_t n, std::size_t size) { return (n + size - 1) / size; }
+
 // A T on cache lines of its own, for the per-chunk buffers that threads
 // fill side by side (neighbouring chunks may run on different threads). A
 // std::vector's header is 24 bytes: packed, the neighbours' headers share
@@ -85,7 +88,7 @@ void for_each_chunk(std::size_t count, bool parallel, Fn&& fn) {
 // [0, n), the last one short, by for_each_chunk.
 template <class Fn>
 void for_each_range(std::size_t n, std::size_t chunk, bool parallel, Fn&& fn) {
-  for_each_chunk((n + chunk - 1) / chunk, parallel,
+  for_each_chunk(chunk_count(n, chunk), parallel,
                  [&](std::size_t c) { fn(c, c * chunk, std::min(n, (c + 1) * chunk)); });
 }
 
@@ -119,7 +122,7 @@ Part reduce_chunks(std::size_t n, ChunkFn fn) {
   // itself would be each worker's own, empty, instance.)
   static thread_local std::vector<Part> buffer;
   std::vector<Part>& partial = buffer;
-  partial.assign((n + kReduceChunk - 1) / kReduceChunk, Part{});
+  partial.assign(chunk_count(n, kReduceChunk), Part{});
   for_each_range(
       n, kReduceChunk, std::ptrdiff_t(n) > kParallelMin,
       [&](std::size_t c, std::size_t begin, std::size_t end) { fn(begin, end, partial[c]); });
@@ -135,7 +138,7 @@ Part reduce_chunks(std::size_t n, ChunkFn fn) {
 // race, and the chunks do not depend on the threads.
 template <class Same, class Fn>
 void for_each_run_chunk(std::size_t n, std::size_t chunk, Same same, Fn fn) {
-  const std::size_t chunks = (n + chunk - 1) / chunk;
+  const std::size_t chunks = chunk_count(n, chunk);
   auto bound = [&](std::size_t c) {
     std::size_t i = std::min(n, c * chunk);
     while (i > 0 && i < n && same(i - 1, i)) ++i;
@@ -149,7 +152,7 @@ void for_each_run_chunk(std::size_t n, std::size_t chunk, Same same, Fn fn) {
 template <class T>
 void exclusive_scan(std::vector<T>& v) {
   constexpr std::size_t kBlock = 4096;
-  const std::size_t n = v.size(), blocks = (n + kBlock - 1) / kBlock;
+  const std::size_t n = v.size(), blocks = chunk_count(n, kBlock);
   // Grows only, per thread of the caller: a step allocates nothing.
   static thread_local std::vector<T> buffer;
   std::vector<T>& first = buffer;
@@ -177,7 +180,7 @@ void exclusive_scan(std::vector<T>& v) {
 template <class Keep>
 void select_in_order(std::size_t n, Keep keep, std::vector<std::uint32_t>& out) {
   constexpr std::size_t kBlock = 4096;
-  const std::size_t blocks = (n + kBlock - 1) / kBlock;
+  const std::size_t blocks = chunk_count(n, kBlock);
   static thread_local std::vector<std::uint32_t> buffer;  // grows only
   std::vector<std::uint32_t>& first = buffer;
   first.assign(blocks + 1, 0);

@@ -114,7 +114,7 @@ void CcpProblem::assemble(const Contacts& c, const MaterialTable& materials,
 void CcpProblem::size_for(std::size_t nc, std::size_t bodies) {
   a_.resize(nc);
   b_.resize(nc);
-  const std::size_t padded = (nc + kLanes - 1) / kLanes * kLanes;
+  const std::size_t padded = chunk_count(nc, kLanes) * kLanes;
   frame_.resize(padded / kLanes * kFrameBlock);
   lever_.resize(6 * padded + 1);
   bias_.resize(padded);
@@ -369,7 +369,7 @@ void CcpProblem::gradient(ConstSpan x, Span g) const {
 }
 
 void CcpProblem::mark_soft_blocks() {
-  const std::size_t nc = a_.size(), blocks = (nc + kLanes - 1) / kLanes;
+  const std::size_t nc = a_.size(), blocks = chunk_count(nc, kLanes);
   auto soft = [&](std::size_t k) { return softness_[k] > 0.0; };
   soft_block_.resize(blocks);
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(nc) > kParallelMin)
@@ -571,7 +571,7 @@ void CcpProblem::warm_start(const std::vector<ContactKey>& keys, const ContactMe
   const std::size_t nc = keys.size();
   static thread_local std::vector<std::uint8_t> missed_buffer;
   std::vector<std::uint8_t>& missed = missed_buffer;  // (named outside the region)
-  missed.assign((nc + kReduceChunk - 1) / kReduceChunk, 0);
+  missed.assign(chunk_count(nc, kReduceChunk), 0);
   auto pass = [&](bool hashed) {
     auto chunk = [&](std::size_t ch, std::size_t begin, std::size_t end) {
       if (hashed && !missed[ch]) return;

@@ -41,7 +41,7 @@ void ContactMemory::build_table() const {
   // its key is placed, so that the cache misses overlap instead of each
   // probe waiting for its own.
   constexpr std::size_t kAhead = 16, kBlock = 4096;
-  const std::size_t n = keys_.size(), blocks = (n + kBlock - 1) / kBlock;
+  const std::size_t n = keys_.size(), blocks = chunk_count(n, kBlock);
 #pragma omp parallel for schedule(static) if (blocks > 1)
   for (std::size_t b = 0; b < blocks; ++b) {
     std::array<std::uint64_t, kAhead> ahead;
