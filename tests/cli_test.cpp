@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "output/compare.hpp"
+#include "output/tables.hpp"
 #include "support.hpp"
 
 namespace {
@@ -328,7 +329,8 @@ TEST(Cli, RunWritesTheOutputFilesInTheirFormats) {
   EXPECT_EQ(std::count(bins.begin(), bins.end(), '\n'), 41);
   const std::string products = read_text(dir / "products.csv");
   EXPECT_EQ(products.substr(0, products.find('\n')),
-            "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery");
+            "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery,grade_se,"
+            "recovery_se");
   EXPECT_EQ(std::count(products.begin(), products.end(), '\n'), 5);
   const std::string crossings = read_text(dir / "crossings.csv");
   EXPECT_EQ(crossings.substr(0, crossings.find('\n')),
@@ -372,10 +374,60 @@ TEST(Cli, TidyTablesAgreeWithTheSummary) {
     EXPECT_EQ(main[4], summary["main_material"]);
     EXPECT_NEAR(std::stod(main[7]), summary["grade"].get<double>(), 1e-9);
     EXPECT_NEAR(std::stod(main[8]), summary["recovery"].get<double>(), 1e-9);
+    EXPECT_NEAR(std::stod(main[9]), summary["grade_se"].get<double>(), 1e-9);
+    EXPECT_NEAR(std::stod(main[10]), summary["recovery_se"].get<double>(), 1e-9);
     EXPECT_NEAR(std::stod(copper[7]) + std::stod(fr4[7]), 1.0, 1e-8);  // grades add up to 1
     EXPECT_NEAR(std::stod(copper[6]) + std::stod(fr4[6]), summary["mass_kg"].get<double>(),
                 1e-9 * summary["mass_kg"].get<double>());
   }
+}
+
+// Each product's standard errors follow from the particles of
+// crossings.csv and lost.csv: their masses' sums and sums of squares per
+// product and material, per product, and per material (collected anywhere
+// or lost), into ratio_standard_error. 1e-7 relative, plus 1e-12: the
+// files' masses have 9 significant digits.
+TEST(Cli, ProductStandardErrorsFollowFromTheParticles) {
+  const fs::path& dir = tiny_run("formats");
+  struct Sums {
+    double kg = 0.0, squares = 0.0;
+    std::uint64_t n = 0;
+    void add(double m) {
+      kg += m;
+      squares += m * m;
+      ++n;
+    }
+  };
+  std::map<std::string, Sums> cell, product, material;  // keyed "product/material", ...
+  const ces::output::Table crossings = ces::output::read_table(dir / "crossings.csv");
+  const ces::output::Table lost = ces::output::read_table(dir / "lost.csv");
+  for (const ces::output::Table* t : {&crossings, &lost}) {
+    const std::size_t mass = t->column("mass_kg", dir), mat = t->column("material", dir);
+    const bool collected = t == &crossings;
+    const std::size_t prod = collected ? t->column("product", dir) : 0;
+    for (const auto& row : t->rows) {
+      const double m = std::stod(row[mass]);
+      material[row[mat]].add(m);
+      if (!collected || row[prod].empty()) continue;
+      cell[row[prod] + "/" + row[mat]].add(m);
+      product[row[prod]].add(m);
+    }
+  }
+  const ces::output::Table products = ces::output::read_table(dir / "products.csv");
+  ASSERT_EQ(products.rows.size(), 4u);
+  int spread = 0;
+  for (const auto& row : products.rows) {
+    const Sums c = cell[row[1] + "/" + row[4]], p = product[row[1]], m = material[row[4]];
+    const double grade_se =
+        ces::output::ratio_standard_error(c.kg, p.kg, c.squares, p.squares, p.n);
+    const double recovery_se =
+        ces::output::ratio_standard_error(c.kg, m.kg, c.squares, m.squares, m.n);
+    EXPECT_NEAR(std::stod(row[9]), grade_se, 1e-7 * grade_se + 1e-12) << row[1] << " " << row[4];
+    EXPECT_NEAR(std::stod(row[10]), recovery_se, 1e-7 * recovery_se + 1e-12)
+        << row[1] << " " << row[4];
+    spread += grade_se > 0.0 && recovery_se > 0.0;
+  }
+  EXPECT_GT(spread, 0);  // the run puts some of a material in each product
 }
 
 // The XML part of a binary .vtp: everything before its appended data.
@@ -463,8 +515,8 @@ TEST(Cli, CompareRefusesTablesItDoesNotKnow) {
                  "found 'garbage'");
   fs::copy_file(a / "bins.csv", b / "bins.csv", fs::copy_options::overwrite_existing);
   std::string products = read_text(a / "products.csv");
-  const std::size_t grade = products.find('\n', products.find('\n') + 1);
-  const std::size_t cell = products.rfind(',', products.rfind(',', grade - 1) - 1) + 1;
+  std::size_t cell = products.find('\n') + 1;  // row 2's grade: its eighth field
+  for (int field = 0; field < 7; ++field) cell = products.find(',', cell) + 1;
   products.replace(cell, products.find(',', cell) - cell, "pure");
   std::ofstream(b / "products.csv") << products;
   expect_refused((b / "products.csv").string() + ":2: grade is not a finite number: 'pure'");

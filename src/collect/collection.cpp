@@ -54,9 +54,11 @@ Collection::Collection(std::vector<Collector> collectors, std::optional<geo::Aab
     t.products.resize(c.products.size() * materials_);
     t.outside.resize(materials_);
     t.total.resize(materials_);
+    t.product_squares.resize(t.products.size());
     tallies_.push_back(std::move(t));
   }
   for (std::vector<Tally>& l : lost_) l.resize(materials_);
+  settled_squares_.resize(materials_);
 }
 
 Tally Collection::collected_total(std::size_t m) const {
@@ -79,6 +81,20 @@ void Collection::collect(double t_end, double h, Particles& p) {
     if (leaves(p, i, t_end, h)) p.swap_remove(i);
   sort_by_time_and_id(crossings_);
   sort_by_time_and_id(losses_);
+  tally_squares();
+}
+
+// In the records' (time, id) order, not the particles': sums of doubles
+// depend on their order, and this one does not depend on the arrays'.
+void Collection::tally_squares() {
+  for (const Crossing& c : crossings_) {
+    const double square = c.mass * c.mass;
+    settled_squares_[std::size_t(c.material)] += square;
+    if (c.product >= 0)
+      tallies_[std::size_t(c.collector)]
+          .product_squares[std::size_t(c.product) * materials_ + std::size_t(c.material)] += square;
+  }
+  for (const Loss& l : losses_) settled_squares_[std::size_t(l.material)] += l.mass * l.mass;
 }
 
 bool Collection::leaves(const Particles& p, std::size_t i, double t_end, double h) {
@@ -159,19 +175,27 @@ void Collection::lose(const Particles& p, std::size_t i, double t_end, LossReaso
 }
 
 void Collection::save(ByteWriter& out) const {
-  for (const CollectorTallies& t : tallies_)
+  for (const CollectorTallies& t : tallies_) {
     for (const auto* v : {&t.bins, &t.products, &t.outside, &t.total}) out.values(*v);
+    out.values(t.product_squares);
+  }
   for (const std::vector<Tally>& l : lost_) out.values(l);
+  out.values(settled_squares_);
 }
 
 void Collection::load(ByteReader& in) {
-  for (CollectorTallies& t : tallies_)
-    for (auto* v : {&t.bins, &t.products, &t.outside, &t.total}) {
-      const std::size_t expected = v->size();
-      in.values(*v);
-      if (v->size() != expected) throw CorruptData("a collector's bins or products have changed");
-    }
+  auto sized = [&](auto& v, const char* what) {
+    const std::size_t expected = v.size();
+    in.values(v);
+    if (v.size() != expected) throw CorruptData(what);
+  };
+  for (CollectorTallies& t : tallies_) {
+    for (auto* v : {&t.bins, &t.products, &t.outside, &t.total})
+      sized(*v, "a collector's bins or products have changed");
+    sized(t.product_squares, "a collector's products have changed");
+  }
   for (std::vector<Tally>& l : lost_) in.values(l);
+  sized(settled_squares_, "the materials have changed");
   crossings_.clear();
   losses_.clear();
 }

@@ -57,6 +57,12 @@ struct CollectorTallies {
   std::vector<Tally> products;  // slot = product
   std::vector<Tally> outside;   // crossed outside the bins; slot = 0
   std::vector<Tally> total;     // everything collected; slot = 0
+  // Per product and material, as `products`: the sum of the particles'
+  // squared masses (kg^2), for the products' standard errors
+  // (output/tables.hpp). A double, not exact units: an error estimate
+  // needs no exact balance, and the squares of a heavy particle's units
+  // would overflow 128 bits.
+  std::vector<double> product_squares;
 };
 
 class Collection {
@@ -76,6 +82,9 @@ class Collection {
   // Material m over every collector, and over every way of being lost.
   Tally collected_total(std::size_t m) const;
   Tally lost_total(std::size_t m) const;
+  // Material m's sum of squared masses (kg^2) over everything collected
+  // and lost: the denominator's, for the recoveries' standard errors.
+  double settled_squares(std::size_t m) const { return settled_squares_[m]; }
 
   // The last step's records, in (time, id) order.
   const std::vector<Crossing>& crossings() const { return crossings_; }
@@ -91,6 +100,7 @@ class Collection {
   bool try_collect(const Particles& p, std::size_t i, double t_end, double h);
   void lose(const Particles& p, std::size_t i, double t_end, LossReason reason);
   void tally_crossing(const Crossing& c);
+  void tally_squares();
 
   std::vector<Collector> collectors_;
   std::optional<geo::Aabb> domain_;
@@ -99,6 +109,7 @@ class Collection {
   std::vector<Vec3> axes_;  // unit bin axis per collector
   std::vector<CollectorTallies> tallies_;
   std::array<std::vector<Tally>, kLossReasons.size()> lost_;  // per material
+  std::vector<double> settled_squares_;                       // per material
   std::vector<Crossing> crossings_;                           // the last step's
   std::vector<Loss> losses_;                                  // the last step's
 };

@@ -88,7 +88,7 @@ std::string compare_cell(const std::string& where, const std::string& column, co
     return check_cell(where, {column, x, y, 1e-9 * std::max(std::abs(x), std::abs(y))});
   if (column == "count") return check_cell(where, {column, x, y, double(o.tol_count)});
   if (column == "mass_kg") return check_cell(where, {column, x, y, o.tol_mass * mass_scale});
-  if (column == "grade" || column == "recovery")
+  if (column == "grade" || column == "recovery" || column == "grade_se" || column == "recovery_se")
     return check_cell(where, {column, x, y, o.tol_mass});
   return where + " " + column + ": " + a + " vs " + b;
 }

@@ -29,6 +29,7 @@ const el = (tag, attrs, text) => { const e = document.createElement(tag);
   Object.assign(e, attrs || {}); if (text !== undefined) e.textContent = text; return e; };
 const fmt = (x, d) => (x === undefined || x === null || typeof x !== 'number') ? String(x) : x.toFixed(d);
 const frac = x => fmt(x, 4);  // ratios as fractions, as in the files
+const spread = (x, se) => frac(x) + ' ± ' + frac(se);  // a ratio and its standard error
 const grams = kg => fmt(1000 * kg, 3);
 function table(parent, head, rows) {
   const t = el('table'); const tr = el('tr');
@@ -49,8 +50,9 @@ function products() {
   const p = document.getElementById('products');
   S.collectors.forEach(c => {
     p.appendChild(el('h3', {}, c.name + ': ' + c.collected.count + ' particles, ' + grams(c.collected.mass_kg) + ' g'));
-    table(p, ['product', 'mass g', 'main material', 'grade', 'recovery'],
-      c.products.map(x => [x.name, grams(x.mass_kg), x.main_material || '-', frac(x.grade), frac(x.recovery)]));
+    table(p, ['product', 'mass g', 'main material', 'grade ± s.e.', 'recovery ± s.e.'],
+      c.products.map(x => [x.name, grams(x.mass_kg), x.main_material || '-', spread(x.grade, x.grade_se),
+                           spread(x.recovery, x.recovery_se)]));
   });
 }
 function balance() {

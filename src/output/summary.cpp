@@ -184,7 +184,9 @@ Json collectors_json(const RunRecord& r) {
                           {"main_material",
                            p.main_material < 0 ? "" : materials[std::size_t(p.main_material)].name},
                           {"grade", p.grade},
-                          {"recovery", p.recovery}});
+                          {"recovery", p.recovery},
+                          {"grade_se", p.grade_se},
+                          {"recovery_se", p.recovery_se}});
     }
     out.push_back({{"name", r.sim->collectors[k].name},
                    {"collected", tally_json(sum(t.total))},
@@ -215,9 +217,9 @@ void print_products(const RunRecord& r, std::FILE* out) {
       std::fprintf(out, "  %-24s empty\n", name.c_str());
       continue;
     }
-    std::fprintf(out, "  %-24s %-12s grade %.3f  recovery %.3f  %s\n", name.c_str(),
-                 materials[std::size_t(p.main_material)].name.c_str(), p.grade, p.recovery,
-                 grams(p.total_kg).c_str());
+    std::fprintf(out, "  %-24s %-12s grade %.3f +- %.3f  recovery %.3f +- %.3f  %s\n", name.c_str(),
+                 materials[std::size_t(p.main_material)].name.c_str(), p.grade, p.grade_se,
+                 p.recovery, p.recovery_se, grams(p.total_kg).c_str());
   }
 }
 

@@ -1,6 +1,7 @@
 #include "output/tables.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "output/format.hpp"
 
@@ -11,9 +12,26 @@ const std::string& material_name(const Simulation& sim, int m) {
   return sim.model->materials.materials()[std::size_t(m)].name;
 }
 
-// Mass of material m whose fate is known: collected anywhere, or lost.
-MassUnits settled_mass(const Collection& c, int m) {
-  return c.collected_total(std::size_t(m)).mass + c.lost_total(std::size_t(m)).mass;
+// Material m whose fate is known: collected anywhere, or lost.
+Tally settled(const Collection& c, int m) {
+  return c.collected_total(std::size_t(m)) + c.lost_total(std::size_t(m));
+}
+
+// Material m's share of a product whose reported materials sum to
+// `product` (squares: their squared masses), from its cell.
+ProductShare share(const Collection& c, int m, const Tally& cell, double cell_squares,
+                   const Tally& product, double squares) {
+  ProductShare s;
+  s.count = cell.count;
+  s.kg = cell.kg();
+  if (cell.mass == 0) return s;
+  const Tally known = settled(c, m);
+  s.grade = double(cell.mass) / double(product.mass);
+  s.recovery = double(cell.mass) / double(known.mass);
+  s.grade_se = ratio_standard_error(s.kg, product.kg(), cell_squares, squares, product.count);
+  s.recovery_se = ratio_standard_error(s.kg, known.kg(), cell_squares,
+                                       c.settled_squares(std::size_t(m)), known.count);
+  return s;
 }
 
 ProductResult product_result(const Collection& c, int collector, int product,
@@ -23,28 +41,28 @@ ProductResult product_result(const Collection& c, int collector, int product,
   ProductResult r;
   r.collector = collector;
   r.product = product;
-  MassUnits total = 0, main = 0;
+  Tally total;
+  MassUnits main = 0;
+  double squares = 0.0;
   for (const int m : materials) {
     const Tally& cell = t.products[base + std::size_t(m)];
-    total += cell.mass;
+    total += cell;
+    squares += t.product_squares[base + std::size_t(m)];
     if (cell.mass > main) {  // ties keep the first (lower index) material
       main = cell.mass;
       r.main_material = m;
     }
   }
-  r.total_kg = to_kg(total);
+  r.total_kg = total.kg();
   for (const int m : materials) {
-    const Tally& cell = t.products[base + std::size_t(m)];
-    ProductShare& s = r.shares.emplace_back();
-    s.count = cell.count;
-    s.kg = cell.kg();
-    if (cell.mass == 0) continue;
-    s.grade = double(cell.mass) / double(total);
-    s.recovery = double(cell.mass) / double(settled_mass(c, m));
-    if (m == r.main_material) {
-      r.grade = s.grade;
-      r.recovery = s.recovery;
-    }
+    const std::size_t at = base + std::size_t(m);
+    const ProductShare& s =
+        r.shares.emplace_back(share(c, m, t.products[at], t.product_squares[at], total, squares));
+    if (m != r.main_material) continue;
+    r.grade = s.grade;
+    r.recovery = s.recovery;
+    r.grade_se = s.grade_se;
+    r.recovery_se = s.recovery_se;
   }
   return r;
 }
@@ -52,6 +70,14 @@ ProductResult product_result(const Collection& c, int collector, int product,
 void append_xyz(CsvWriter& row, const Vec3& v) { row << v.x() << v.y() << v.z(); }
 
 }  // namespace
+
+double ratio_standard_error(double part, double whole, double q_part, double q_whole,
+                            std::uint64_t n) {
+  if (n < 2 || !(whole > 0.0)) return 0.0;
+  const double r = part / whole;
+  const double residuals = (1.0 - r) * (1.0 - r) * q_part + r * r * (q_whole - q_part);
+  return std::sqrt(std::max(0.0, residuals) * double(n) / double(n - 1)) / whole;
+}
 
 std::vector<int> fed_materials(const Simulation& sim) {
   std::vector<int> m;
@@ -102,7 +128,7 @@ std::string products_csv(const Simulation& sim, const std::vector<ProductResult>
     for (std::size_t m = 0; m < materials.size(); ++m) {
       const ProductShare& s = r.shares[m];
       row << col.name << p.name << p.from << p.to << material_name(sim, materials[m]) << s.count
-          << s.kg << s.grade << s.recovery;
+          << s.kg << s.grade << s.recovery << s.grade_se << s.recovery_se;
       row.end_row();
     }
   }

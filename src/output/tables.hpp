@@ -11,7 +11,9 @@
 // material's mass whose fate is known (collected anywhere, or lost).
 // Particles still in flight at the end count in neither, so a run that
 // ends early does not read as a poor recovery. Grades and recoveries are
-// fractions (0.98, not 98 %), here and in every output.
+// fractions (0.98, not 98 %), here and in every output. Each comes with
+// its standard error over the feed's sampling (ratio_standard_error):
+// how much another seed's feed of the same scene moves it.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -26,12 +28,27 @@ namespace ces::output {
 // The materials the tables report: those some feed uses, by Model index.
 std::vector<int> fed_materials(const Simulation& sim);
 
+// The standard error of part / whole, two sums of the masses of particles
+// drawn independently, the part's particles among the whole's: the delta
+// method's for a ratio estimator (Cochran, Sampling Techniques, 3rd ed.,
+// 1977, section 6.3). With r = part / whole a particle's residual is its
+// mass times 1 - r in the part and -r outside it, so
+//   se^2 = n / (n - 1) ((1 - r)^2 q_part + r^2 (q_whole - q_part)) / whole^2,
+// q the sums of the squared masses, n the whole's particle count. Equal
+// masses give the binomial sqrt(r (1 - r) / (n - 1)). 0 for fewer than two
+// particles, and where all or none of the whole is in the part: the
+// sample then shows no spread (n particles all one way put the other way's
+// share below 3 / n by count at 95 %).
+double ratio_standard_error(double part, double whole, double q_part, double q_whole,
+                            std::uint64_t n);
+
 // One material in one product.
 struct ProductShare {
   std::uint64_t count = 0;
   double kg = 0.0;
   double grade = 0.0;     // its mass / the product's (0 when the product is empty)
   double recovery = 0.0;  // its mass here / its mass collected or lost (0 when none)
+  double grade_se = 0.0, recovery_se = 0.0;  // their standard errors
 };
 
 struct ProductResult {
@@ -42,6 +59,7 @@ struct ProductResult {
   int main_material = -1;  // Model index of the largest mass; -1 for an empty product
   double grade = 0.0;      // the main material's
   double recovery = 0.0;
+  double grade_se = 0.0, recovery_se = 0.0;
 };
 
 std::vector<ProductResult> product_results(const Simulation& sim, const Collection& c,
@@ -50,7 +68,7 @@ std::vector<ProductResult> product_results(const Simulation& sim, const Collecti
 // The tables' header lines, which `compare` expects of what it reads.
 inline constexpr std::string_view kBinsHeader = "collector,bin,from_m,to_m,material,count,mass_kg";
 inline constexpr std::string_view kProductsHeader =
-    "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery";
+    "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery,grade_se,recovery_se";
 inline constexpr std::string_view kCrossingsHeader =
     "id,time_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,along_m,diameter_m,mass_kg,material,charge_c,"
     "collector,bin,product";
