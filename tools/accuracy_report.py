@@ -5,6 +5,7 @@ With --section RUNS TITLE ABOUT before OUT, the runs OUT/RUNS_SEED instead,
 as a section of another document: TITLE its heading, ABOUT (Markdown) what
 the runs are, and it is added to DOC (tools/accuracy_industrial.sh). With
 --against NAME after them, against OUT/NAME_SEED instead of the reference."""
+import csv
 import random
 import sys
 
@@ -153,4 +154,37 @@ for run, s in summary.items():
                  f"| {so['max_penetration_relative']:.3f} | {so['max_wall_penetration_relative']:.3f} "
                  f"| {len(s.get('warnings', []))} "
                  f"| {s['wall_time_s']['total']:.0f} s | {load[run][0]}, {load[run][1]} |")
+
+
+def main_rows(folder):
+    """Per product of the bins: its main material's row of products.csv."""
+    rows = {}
+    for r in csv.DictReader(open(f"{folder}/products.csv")):
+        if r["collector"] == "bins" and (r["product"] not in rows or
+                                         float(r["mass_kg"]) > float(rows[r["product"]]["mass_kg"])):
+            rows[r["product"]] = r
+    return rows
+
+
+if not section:
+    own = [main_rows(f"{out}/{compared}_{s}") for s in seeds]
+    lines += ["", "## The runs' own standard errors", "",
+              "Every run gives each grade and recovery with its standard error over the",
+              "sampling of the feed ([outputs.md](outputs.md), products.csv): what another",
+              "seed's particles would move it by. Here the defaults' runs' own, each",
+              "product's main material, in percentage points, beside the standard",
+              "deviation of the runs' values over the seeds, which they estimate (from",
+              f"{len(seeds)} values, itself uncertain by about 1 / sqrt(2 ({len(seeds)} - 1)) of it).", "",
+              "| product | material | figure | " + " | ".join(f"seed {s}" for s in seeds)
+              + " | standard deviation over the seeds |",
+              "|---|---|---|" + "---|" * len(seeds) + "---|"]
+    for product in sorted(own[0]):
+        for figure in ("grade", "recovery"):
+            values = [100 * float(o[product][figure]) for o in own]
+            mean = sum(values) / len(values)
+            sd = (sum((v - mean) ** 2 for v in values) / (len(values) - 1)) ** 0.5
+            cells = [f"{100 * float(o[product][figure]):.2f} ± {100 * float(o[product][figure + '_se']):.2f}"
+                     for o in own]
+            lines.append(f"| {product} | {own[0][product]['material']} | {figure} | "
+                         + " | ".join(cells) + f" | {sd:.2f} |")
 open(doc, "a" if section else "w").write("\n".join(lines) + "\n")
