@@ -62,6 +62,15 @@ products=$(awk -F, '
 read -r cu fr lost cu_share grade recovery fr4_rec middling mid_fr4 \
         cu_non cu_mid cu_cond fr_non fr_mid fr_cond cond_share <<< "$products"
 
+# The standard errors of the targets' three product figures over the
+# feed's sampling, in percent, from products.csv.
+read -r grade_se recovery_se fr4_rec_se < <(awk -F, '
+  NR == 1 { for (k = 1; k <= NF; ++k) col[$k] = k; next }
+  $col["collector"] == "bins" { key = $col["product"] "/" $col["material"]
+                                g[key] = $col["grade_se"]; r[key] = $col["recovery_se"] }
+  END { printf "%.1f %.1f %.1f\n", 100 * g["conductor/copper"], 100 * r["conductor/copper"],
+               100 * r["nonconductor/fr4"] }' "$out/ces_pcb/products.csv")
+
 # Densities (g per 5 mm bin) on the plane of splitter 2's edge, one line
 # per bin, "x copper fr4", from bins.csv's row per bin and material; and the
 # x beyond the drum (x > 0.16 m) where FR-4 - copper changes sign.
@@ -121,12 +130,16 @@ at 70 rpm, run until every particle fed is collected or lost.
 
 | quantity | target | model | |
 |---|---|---|---|
-| copper grade of the conductor product | ≥ 98 % | $grade % | $(verdict "$grade" 98 ">=") |
-| copper recovery into the conductor product | ≥ 97 % | $recovery % | $(verdict "$recovery" 97 ">=") |
-| FR-4 recovery into the non-conductor product | ≥ 90 % | $fr4_rec % | $(verdict "$fr4_rec" 90 ">=") |
+| copper grade of the conductor product | ≥ 98 % | $grade ± $grade_se % | $(verdict "$grade" 98 ">=") |
+| copper recovery into the conductor product | ≥ 97 % | $recovery ± $recovery_se % | $(verdict "$recovery" 97 ">=") |
+| FR-4 recovery into the non-conductor product | ≥ 90 % | $fr4_rec ± $fr4_rec_se % | $(verdict "$fr4_rec" 90 ">=") |
 | middling, share of the feed mass | ≤ 10 % | $middling % | $(verdict "$middling" 10 "<=") |
 | fed = collected + lost, none left | exact | exact: $exact, active: $(balance active), lost: $(balance lost) particles ($lost g) | $balance_ok |
 | wall time of the run | ≤ 180 s on 2 cores | $wall s (load average $load0 at the start, $load1 at the end) | $time_ok |
+
+± the run's standard error over the sampling of the feed (products.csv,
+[outputs.md](outputs.md)): another seed's particles move the figure by
+about that; 0 where every particle of the material went one way.
 
 Fed: $cu g of copper and $fr g of FR-4 (copper $cu_share % of the mass); the
 run ended at t = $simulated s. Products, g:
