@@ -105,6 +105,10 @@ TEST(Study, ErrorsShrinkWithTheStepAndTheReferenceIsExact) {
       test::ces_sim("study " + kScene + kSteps + " --jobs 2 -o " + dir.string());
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("reference: " + (dir / "case_2").string()), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("the feed's sampling at the reference (its products' largest standard "
+                       "errors): grade "),
+            std::string::npos)
+      << r.out;
   const auto rows = read_csv(dir / "study.csv");
   ASSERT_EQ(rows.size(), 4u);
   const auto col = [&](const std::string& name) {

@@ -11,6 +11,7 @@
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
@@ -151,14 +152,24 @@ bool run_cases(const Options& o, const std::vector<Case>& cases) {
 
 // Per collector and product: the grade and recovery of its main material,
 // the material with the largest mass (the first listed on a tie), as the
-// summary and the report give them.
-using ProductFigures = std::map<std::pair<std::string, std::string>, std::pair<double, double>>;
+// summary and the report give them, with their standard errors (0 in a
+// products.csv written before it had them).
+struct MainFigures {
+  double grade = 0.0, recovery = 0.0, grade_se = 0.0, recovery_se = 0.0;
+};
+using ProductFigures = std::map<std::pair<std::string, std::string>, MainFigures>;
 
 ProductFigures main_material_figures(const fs::path& file) {
   const output::Table t = output::read_table(file);
   const std::size_t collector = t.column("collector", file), product = t.column("product", file),
                     mass = t.column("mass_kg", file), grade = t.column("grade", file),
                     recovery = t.column("recovery", file);
+  const auto optional = [&](const std::string& name) {
+    const auto it = std::find(t.header.begin(), t.header.end(), name);
+    return it == t.header.end() ? std::optional<std::size_t>() : std::size_t(it - t.header.begin());
+  };
+  const std::optional<std::size_t> grade_se = optional("grade_se"),
+                                   recovery_se = optional("recovery_se");
   ProductFigures figures;
   std::map<std::pair<std::string, std::string>, double> largest;
   for (const auto& row : t.rows) {
@@ -167,7 +178,9 @@ ProductFigures main_material_figures(const fs::path& file) {
     const auto it = largest.find(key);
     if (it != largest.end() && kg <= it->second) continue;
     largest[key] = kg;
-    figures[key] = {std::stod(row[grade]), std::stod(row[recovery])};
+    figures[key] = {std::stod(row[grade]), std::stod(row[recovery]),
+                    grade_se ? std::stod(row[*grade_se]) : 0.0,
+                    recovery_se ? std::stod(row[*recovery_se]) : 0.0};
   }
   return figures;
 }
@@ -441,6 +454,20 @@ std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& row
   return text;
 }
 
+// What the feed's sampling gives at the reference: its products' largest
+// standard errors. A case's errors below about 1.4 times them (the spread
+// of a difference of two independent samples) are what another seed's
+// feed would give: not an error of its settings.
+std::string sampling_line(const fs::path& reference) {
+  double grade = 0.0, recovery = 0.0;
+  for (const auto& [product, f] : main_material_figures(reference / "products.csv")) {
+    grade = std::max(grade, f.grade_se);
+    recovery = std::max(recovery, f.recovery_se);
+  }
+  return "the feed's sampling at the reference (its products' largest standard errors): grade " +
+         fmt(grade) + ", recovery " + fmt(recovery) + "\n";
+}
+
 std::string study_table(const std::vector<Axis>& axes, const std::vector<Row>& rows) {
   std::vector<std::vector<std::string>> cells{{"case"}};
   for (const Axis& a : axes)
@@ -611,8 +638,8 @@ Errors measure(const fs::path& run, const fs::path& reference) {
   for (const auto& [product, a] : fa) {
     const auto b = fb.find(product);
     if (b == fb.end()) continue;
-    e.grade = std::max(e.grade, std::abs(a.first - b->second.first));
-    e.recovery = std::max(e.recovery, std::abs(a.second - b->second.second));
+    e.grade = std::max(e.grade, std::abs(a.grade - b->second.grade));
+    e.recovery = std::max(e.recovery, std::abs(a.recovery - b->second.recovery));
   }
   std::ifstream in(run / "summary.json");
   const auto j = nlohmann::json::parse(in, nullptr, false);
@@ -653,7 +680,8 @@ int run(const Options& o) {
   std::vector<Row> rows;
   for (const Case& c : cases) rows.push_back(read_row(o, c, reference));
   output::write_file_atomic(o.out_dir / "study.csv", study_csv(o.axes, rows));
-  const std::string svg = study_svg(rows), table = study_table(o.axes, rows);
+  const std::string svg = study_svg(rows),
+                    table = sampling_line(reference) + study_table(o.axes, rows);
   output::write_file_atomic(o.out_dir / "study.svg", svg);
   output::write_file_atomic(o.out_dir / "report.html", study_report(cases, reference, table, svg));
   std::printf("reference: %s\n%s", reference.c_str(), table.c_str());
