@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <sstream>
 #include <thread>
 
 #include "output/compare.hpp"
@@ -147,6 +148,22 @@ TEST(Study, ErrorsShrinkWithTheStepAndTheReferenceIsExact) {
   const std::string report = test::read_text(dir / "report.html");
   EXPECT_NE(report.find("<a href=\"case_2/report.html\">"), std::string::npos);
   EXPECT_TRUE(test::fs::exists(dir / "case_2" / "report.html"));
+
+  // A reference whose products.csv has no standard errors (an older run):
+  // the sampling is not known, and the study says so.
+  const path old = test::fresh_dir("study_old_reference");
+  for (const char* name : {"crossings.csv", "summary.json"})
+    test::fs::copy_file(dir / "case_2" / name, old / name);
+  std::istringstream products(test::read_text(dir / "case_2" / "products.csv"));
+  std::ofstream stripped(old / "products.csv");
+  for (std::string line; std::getline(products, line);)
+    stripped << line.substr(0, line.rfind(',', line.rfind(',') - 1)) << '\n';
+  stripped.close();
+  const test::Outcome again = test::ces_sim("study " + kScene + kSteps + " --jobs 2 -o " +
+                                            dir.string() + " --reference " + old.string());
+  ASSERT_EQ(again.code, 0) << again.err;
+  EXPECT_NE(again.out.find("the feed's sampling at the reference: not known"), std::string::npos)
+      << again.out;
 }
 
 // A study of tolerances at one step: the reference is the tightest case,

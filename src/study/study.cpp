@@ -153,7 +153,7 @@ bool run_cases(const Options& o, const std::vector<Case>& cases) {
 // Per collector and product: the grade and recovery of its main material,
 // the material with the largest mass (the first listed on a tie), as the
 // summary and the report give them, with their standard errors (0 in a
-// products.csv written before it had them).
+// products.csv written before it had them: sampling_line says so).
 struct MainFigures {
   double grade = 0.0, recovery = 0.0, grade_se = 0.0, recovery_se = 0.0;
 };
@@ -459,8 +459,13 @@ std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& row
 // of a difference of two independent samples) are what another seed's
 // feed would give: not an error of its settings.
 std::string sampling_line(const fs::path& reference) {
+  const fs::path file = reference / "products.csv";
+  const std::vector<std::string> header = output::read_table(file).header;
+  if (std::find(header.begin(), header.end(), "recovery_se") == header.end())
+    return "the feed's sampling at the reference: not known (its products.csv has no standard "
+           "errors)\n";
   double grade = 0.0, recovery = 0.0;
-  for (const auto& [product, f] : main_material_figures(reference / "products.csv")) {
+  for (const auto& [product, f] : main_material_figures(file)) {
     grade = std::max(grade, f.grade_se);
     recovery = std::max(recovery, f.recovery_se);
   }
