@@ -179,14 +179,15 @@ Json collectors_json(const RunRecord& r) {
     for (const ProductResult& p : r.products) {
       if (p.collector != int(k)) continue;
       const auto& materials = r.sim->model->materials.materials();
+      const ProductShare main = p.main();
       products.push_back({{"name", r.sim->collectors[k].products[std::size_t(p.product)].name},
                           {"mass_kg", p.total_kg},
                           {"main_material",
                            p.main_material < 0 ? "" : materials[std::size_t(p.main_material)].name},
-                          {"grade", p.grade},
-                          {"recovery", p.recovery},
-                          {"grade_se", p.grade_se},
-                          {"recovery_se", p.recovery_se}});
+                          {"grade", main.grade},
+                          {"recovery", main.recovery},
+                          {"grade_se", main.grade_se},
+                          {"recovery_se", main.recovery_se}});
     }
     out.push_back({{"name", r.sim->collectors[k].name},
                    {"collected", tally_json(sum(t.total))},
@@ -217,9 +218,10 @@ void print_products(const RunRecord& r, std::FILE* out) {
       std::fprintf(out, "  %-24s empty\n", name.c_str());
       continue;
     }
+    const ProductShare main = p.main();
     std::fprintf(out, "  %-24s %-12s grade %.3f +- %.3f  recovery %.3f +- %.3f  %s\n", name.c_str(),
-                 materials[std::size_t(p.main_material)].name.c_str(), p.grade, p.grade_se,
-                 p.recovery, p.recovery_se, grams(p.total_kg).c_str());
+                 materials[std::size_t(p.main_material)].name.c_str(), main.grade, main.grade_se,
+                 main.recovery, main.recovery_se, grams(p.total_kg).c_str());
   }
 }
 

@@ -56,13 +56,8 @@ ProductResult product_result(const Collection& c, int collector, int product,
   r.total_kg = total.kg();
   for (const int m : materials) {
     const std::size_t at = base + std::size_t(m);
-    const ProductShare& s =
-        r.shares.emplace_back(share(c, m, t.products[at], t.product_squares[at], total, squares));
-    if (m != r.main_material) continue;
-    r.grade = s.grade;
-    r.recovery = s.recovery;
-    r.grade_se = s.grade_se;
-    r.recovery_se = s.recovery_se;
+    if (m == r.main_material) r.main_share = int(r.shares.size());
+    r.shares.push_back(share(c, m, t.products[at], t.product_squares[at], total, squares));
   }
   return r;
 }

@@ -57,9 +57,11 @@ struct ProductResult {
   std::vector<ProductShare> shares;  // per reported material
   double total_kg = 0.0;
   int main_material = -1;  // Model index of the largest mass; -1 for an empty product
-  double grade = 0.0;      // the main material's
-  double recovery = 0.0;
-  double grade_se = 0.0, recovery_se = 0.0;
+  int main_share = -1;     // its index in shares
+  // The main material's share; all zeros for an empty product.
+  ProductShare main() const {
+    return main_share < 0 ? ProductShare{} : shares[std::size_t(main_share)];
+  }
 };
 
 std::vector<ProductResult> product_results(const Simulation& sim, const Collection& c,
