@@ -153,11 +153,14 @@ bool run_cases(const Options& o, const std::vector<Case>& cases) {
 // Per collector and product: the grade and recovery of its main material,
 // the material with the largest mass (the first listed on a tie), as the
 // summary and the report give them, with their standard errors (0 in a
-// products.csv written before it had them: sampling_line says so).
+// products.csv written before it had them, which has_errors says).
 struct MainFigures {
   double grade = 0.0, recovery = 0.0, grade_se = 0.0, recovery_se = 0.0;
 };
-using ProductFigures = std::map<std::pair<std::string, std::string>, MainFigures>;
+struct ProductFigures {
+  std::map<std::pair<std::string, std::string>, MainFigures> main;
+  bool has_errors = false;
+};
 
 ProductFigures main_material_figures(const fs::path& file) {
   const output::Table t = output::read_table(file);
@@ -171,6 +174,7 @@ ProductFigures main_material_figures(const fs::path& file) {
   const std::optional<std::size_t> grade_se = optional("grade_se"),
                                    recovery_se = optional("recovery_se");
   ProductFigures figures;
+  figures.has_errors = grade_se && recovery_se;
   std::map<std::pair<std::string, std::string>, double> largest;
   for (const auto& row : t.rows) {
     const std::pair key{row[collector], row[product]};
@@ -178,9 +182,9 @@ ProductFigures main_material_figures(const fs::path& file) {
     const auto it = largest.find(key);
     if (it != largest.end() && kg <= it->second) continue;
     largest[key] = kg;
-    figures[key] = {std::stod(row[grade]), std::stod(row[recovery]),
-                    grade_se ? std::stod(row[*grade_se]) : 0.0,
-                    recovery_se ? std::stod(row[*recovery_se]) : 0.0};
+    figures.main[key] = {std::stod(row[grade]), std::stod(row[recovery]),
+                         grade_se ? std::stod(row[*grade_se]) : 0.0,
+                         recovery_se ? std::stod(row[*recovery_se]) : 0.0};
   }
   return figures;
 }
@@ -459,13 +463,12 @@ std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& row
 // of a difference of two independent samples) are what another seed's
 // feed would give: not an error of its settings.
 std::string sampling_line(const fs::path& reference) {
-  const fs::path file = reference / "products.csv";
-  const std::vector<std::string> header = output::read_table(file).header;
-  if (std::find(header.begin(), header.end(), "recovery_se") == header.end())
+  const ProductFigures figures = main_material_figures(reference / "products.csv");
+  if (!figures.has_errors)
     return "the feed's sampling at the reference: not known (its products.csv has no standard "
            "errors)\n";
   double grade = 0.0, recovery = 0.0;
-  for (const auto& [product, f] : main_material_figures(file)) {
+  for (const auto& [product, f] : figures.main) {
     grade = std::max(grade, f.grade_se);
     recovery = std::max(recovery, f.recovery_se);
   }
@@ -640,9 +643,9 @@ Errors measure(const fs::path& run, const fs::path& reference) {
   for (const auto& [key, w1] : e.w1_mm) e.w1_max_mm = std::max(e.w1_max_mm, w1);
   const ProductFigures fa = main_material_figures(run / "products.csv"),
                        fb = main_material_figures(reference / "products.csv");
-  for (const auto& [product, a] : fa) {
-    const auto b = fb.find(product);
-    if (b == fb.end()) continue;
+  for (const auto& [product, a] : fa.main) {
+    const auto b = fb.main.find(product);
+    if (b == fb.main.end()) continue;
     e.grade = std::max(e.grade, std::abs(a.grade - b->second.grade));
     e.recovery = std::max(e.recovery, std::abs(a.recovery - b->second.recovery));
   }
