@@ -528,6 +528,41 @@ TEST(Cli, CompareRefusesTablesItDoesNotKnow) {
   expect_refused((b / "crossings.csv").string() + ":2: along_m is not a finite number: 'far'");
 }
 
+// A products.csv from before the grades' and recoveries' standard errors
+// still compares, on the columns both folders have, and says which it
+// left out: a baseline kept from then stays usable.
+TEST(Cli, CompareReadsProductsFromBeforeTheStandardErrors) {
+  const fs::path& a = tiny_run("formats");
+  const fs::path b = fresh_dir("compare_older");
+  for (const char* name : {"bins.csv", "products.csv", "crossings.csv"})
+    fs::copy_file(a / name, b / name);
+  std::istringstream rows(read_text(a / "products.csv"));
+  std::vector<std::string> older;
+  for (std::string line; std::getline(rows, line);)
+    older.push_back(line.substr(0, line.rfind(',', line.rfind(',') - 1)));
+  const auto write = [&] {
+    std::ofstream out(b / "products.csv");
+    for (const std::string& line : older) out << line << '\n';
+  };
+  write();
+  ASSERT_EQ(older[0], "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery");
+  const std::string left_out = "products.csv: grade_se, recovery_se only in ";
+  const Outcome forward = ces_sim("compare " + a.string() + " " + b.string());
+  EXPECT_EQ(forward.code, 0) << forward.out << forward.err;
+  EXPECT_NE(forward.out.find(left_out + "A (the other written before them): not compared"),
+            std::string::npos)
+      << forward.out;
+  const Outcome backward = ces_sim("compare " + b.string() + " " + a.string());
+  EXPECT_EQ(backward.code, 0) << backward.out << backward.err;
+  EXPECT_NE(backward.out.find(left_out + "B"), std::string::npos) << backward.out;
+  // The shared columns are still compared: row 2's recovery, its last.
+  older[1] = older[1].substr(0, older[1].rfind(',') + 1) + "0.123";
+  write();
+  const Outcome changed = ces_sim("compare " + a.string() + " " + b.string());
+  EXPECT_EQ(changed.code, 1) << changed.out;
+  EXPECT_NE(changed.out.find("recovery: "), std::string::npos) << changed.out;
+}
+
 void expect_same_tables(const fs::path& a, const fs::path& b) {
   for (const char* name : {"bins.csv", "products.csv", "crossings.csv"})
     EXPECT_EQ(read_text(a / name), read_text(b / name)) << name << ": " << a << " vs " << b;

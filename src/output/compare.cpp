@@ -28,6 +28,11 @@ std::ifstream open_table(const std::filesystem::path& file) {
   }
 }
 
+// products.csv as ces-sim wrote it before the grades' and recoveries'
+// standard errors: its columns are the first of today's.
+constexpr std::string_view kProductsHeaderWithoutErrors =
+    "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery";
+
 // A cell of a table read_tally_table checked.
 double number(const std::string& s) { return *csv::number(s); }
 
@@ -93,6 +98,19 @@ std::string compare_cell(const std::string& where, const std::string& column, co
   return where + " " + column + ": " + a + " vs " + b;
 }
 
+// The columns past those both tables have (a table from before a column
+// was added has the earlier ones, in order), as a note; empty if none.
+std::string unshared_columns(const char* file, const Table& a, const Table& b) {
+  const bool a_longer = a.header.size() > b.header.size();
+  const Table& longer = a_longer ? a : b;
+  std::string names;
+  for (std::size_t c = std::min(a.header.size(), b.header.size()); c < longer.header.size(); ++c)
+    names += (names.empty() ? "" : ", ") + longer.header[c];
+  if (names.empty()) return names;
+  return std::string(file) + ": " + names + " only in " + (a_longer ? "A" : "B") +
+         " (the other written before them): not compared";
+}
+
 // Cell-by-cell comparison of bins.csv or products.csv, row by row; the
 // collector, bin or product and material name a row.
 void compare_tables(const std::filesystem::path& dir_a, const char* file, const Table& a,
@@ -114,18 +132,21 @@ void compare_tables(const std::filesystem::path& dir_a, const char* file, const 
       continue;
     }
     const double scale = scales.at({ra[collector], ra[material]});
-    for (std::size_t c = 0; c < ra.size(); ++c) {
+    for (std::size_t c = 0; c < std::min(ra.size(), rb.size()); ++c) {
       if (std::find(keys.begin(), keys.end(), c) != keys.end()) continue;
       std::string d = compare_cell(where, a.header[c], ra[c], rb[c], scale, o);
       if (!d.empty()) r.differences.push_back(std::move(d));
     }
   }
   r.notes.push_back(std::string(file) + ": " + std::to_string(a.rows.size()) + " rows compared");
+  if (std::string unshared = unshared_columns(file, a, b); !unshared.empty())
+    r.notes.push_back(std::move(unshared));
 }
 
 // bins.csv or products.csv: every cell but those naming its row a number.
-Table read_tally_table(const std::filesystem::path& file, std::string_view header) {
-  Table t = read_table(file, header);
+Table read_tally_table(const std::filesystem::path& file, std::string_view header,
+                       std::string_view older_header = {}) {
+  Table t = read_table(file, header, older_header);
   const std::vector<std::size_t> keys = key_columns(t);
   for (std::size_t i = 0; i < t.rows.size(); ++i)
     for (std::size_t c = 0; c < t.header.size(); ++c)
@@ -171,13 +192,15 @@ std::size_t Table::column(const std::string& name, const std::filesystem::path& 
   return std::size_t(it - header.begin());
 }
 
-Table read_table(const std::filesystem::path& file, std::string_view expected_header) {
+Table read_table(const std::filesystem::path& file, std::string_view expected_header,
+                 std::string_view older_header) {
   std::ifstream in = open_table(file);
   Table t;
   std::string line;
   if (!std::getline(in, line)) throw IoError(file.string() + ": empty file");
   t.header = split(csv::without_bom(line));
-  if (!expected_header.empty() && t.header != split(expected_header))
+  const bool older = !older_header.empty() && t.header == split(older_header);
+  if (!expected_header.empty() && t.header != split(expected_header) && !older)
     throw IoError(file.string() + ":1: expected the header " + std::string(expected_header) +
                   ", found '" + std::string(csv::trim(csv::without_bom(line))) + "'");
   for (int n = 2; std::getline(in, line); ++n) {
@@ -229,10 +252,12 @@ double wasserstein1(std::vector<std::pair<double, double>> a,
 CompareResult compare_outputs(const std::filesystem::path& a, const std::filesystem::path& b,
                               const CompareOptions& options) {
   CompareResult r;
-  for (const auto& [file, header] :
-       {std::pair{"bins.csv", kBinsHeader}, std::pair{"products.csv", kProductsHeader}})
-    compare_tables(a, file, read_tally_table(a / file, header), read_tally_table(b / file, header),
-                   options, r);
+  compare_tables(a, "bins.csv", read_tally_table(a / "bins.csv", kBinsHeader),
+                 read_tally_table(b / "bins.csv", kBinsHeader), options, r);
+  const auto products = [](const std::filesystem::path& dir) {
+    return read_tally_table(dir / "products.csv", kProductsHeader, kProductsHeaderWithoutErrors);
+  };
+  compare_tables(a, "products.csv", products(a), products(b), options, r);
   compare_landings(read_landings(a / "crossings.csv"), read_landings(b / "crossings.csv"), options, r);
   return r;
 }

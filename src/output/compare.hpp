@@ -8,7 +8,9 @@
 //    the mass-weighted landing positions along the collector axis within
 //    tol_w1_mm.
 // Differences in layout (bins, products) are always differences; a table
-// without the header ces-sim writes is refused.
+// without the header ces-sim writes is refused, but for a products.csv
+// from before its standard errors, whose columns both folders have are
+// compared (a note names the others).
 #pragma once
 #include <cstdint>
 #include <filesystem>
@@ -34,7 +36,8 @@ struct CompareResult {
 
 // A CSV table as written by output/tables (no quoting). Throws IoError when
 // the file is missing, empty or ragged, lacks the expected header (when one
-// is given) or a requested column, or a requested number.
+// is given; or the older one, when that is given too) or a requested
+// column, or a requested number.
 struct Table {
   std::vector<std::string> header;
   std::vector<std::vector<std::string>> rows;
@@ -42,7 +45,8 @@ struct Table {
   std::size_t column(const std::string& name, const std::filesystem::path& file) const;
   double number(std::size_t row, std::size_t column, const std::filesystem::path& file) const;
 };
-Table read_table(const std::filesystem::path& file, std::string_view expected_header = {});
+Table read_table(const std::filesystem::path& file, std::string_view expected_header = {},
+                 std::string_view older_header = {});
 
 // Landing positions along the collector axis and masses, per
 // "material at collector", from a crossings.csv.
