@@ -55,7 +55,7 @@ BedRun measure_bed(std::size_t n, int threads, int iterations, double work) {
   World w(bed_model(iterations, threads));
   fill_bed(w, n, 0.001, 1.0);
   // A simple-cubic stack under gravity is unstable: left alone it topples
-  // after about 50 steps and the contact count drifts. Putting the bed back
+  // within tens of steps and the contact count drifts. Putting the bed back
   // after every step makes every step solve the same problem.
   const Particles start = w.particles();
   BedRun run;

@@ -5,8 +5,8 @@
 # writes the table, OUT_DIR/accuracy_stress.md (bench/stress_report.py).
 # Usage, from the repository root:
 #   bash bench/stress.sh [OUT_DIR] [SCENE_NAME...]        (default: bench/out/stress, all)
-# The 1e5-particle dense flow and step_10ms are the long ones (most of an
-# hour, half of one): name the others to leave them out. One thread each.
+# The 1e5-particle dense flow and step_10ms are the long ones: name the
+# others to leave them out. One thread each.
 set -u
 out=${1:-bench/out/stress}; shift || true
 bin=${CES_SIM:-build/ces-sim}

@@ -43,9 +43,9 @@ TEST(Engine, ClumpSpinIsCappedOnlyInContact) {
 
 // The cap's purpose: a dumbbell (two 1 mm spheres, centres 6 mm apart)
 // tumbling at 450 rad/s onto a plane at a 10 ms step (4.5 rad a step). Its
-// spheres' rows are linear in the step's motion, so uncapped a sphere ended
-// 0.66 radii inside the plane; capped (at a quarter radius of drift) 0.03.
-// Bound: a quarter radius.
+// spheres' rows are linear in the step's motion, so uncapped a sphere ends
+// far past a quarter radius inside the plane; the cap holds each sphere's
+// drift in a step to a quarter radius. Bound: a quarter radius.
 TEST(Engine, TumblingClumpStaysOutOfThePlane) {
   auto m = base_model({0.5}, 10e-3);
   m->shapes.push_back(make_particle_shape({Vec3(-3, 0, 0), Vec3(3, 0, 0)}, {1.0, 1.0}));

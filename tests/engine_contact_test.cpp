@@ -199,7 +199,7 @@ TEST(Engine, RaftInMeshCornerKeepsContactsOnBothFaces) {
 // corners and the deepest alone do not hold them as it rocks. With the
 // solve converged, no sphere may end a step in the bar by more than the
 // penetration tolerance (0.1 of a radius) under Manifold::Hold; with the
-// corners and the deepest alone, one does by 0.12. Against a body the
+// corners and the deepest alone, one ends past it. Against a body the
 // contacts are held under Manifold::Four too.
 // The rocking rafts' model: frictionless, under gravity, the solve
 // converged.
@@ -239,7 +239,7 @@ TEST(Engine, RaftRockingOnABarKeepsItsSpheresOut) {
 // spheres beside the deepest (all 25 of them within reach), and none ends
 // a step in the ball past the tolerance. Manifold::Four keeps four of each
 // group of normals (16 in all) and lets the others in: more than ten
-// times as deep (0.07 of a radius against 0.0005).
+// times as deep (asserted).
 struct Rocking {
   double worst = 0.0;           // of the smaller radius
   std::size_t most_listed = 0;  // contacts between the raft and the ball in a step

@@ -88,7 +88,7 @@ TEST(Engine, EveryChunkRunsOnceAndASlowThreadsShareIsTakenOver) {
   omp_set_num_threads(omp_get_num_procs());
 }
 
-// The helpers the step's formerly serial passes run on (common/parallel.hpp),
+// The helpers the step's parallel passes run on (common/parallel.hpp),
 // against their serial definitions, on 1 to 3 threads and on sizes that
 // are and are not whole blocks.
 TEST(Engine, ParallelScanSelectAndRunChunksMatchTheirSerialDefinitions) {
@@ -214,8 +214,8 @@ TEST(Engine, SpatialReorderMovesWholeParticles) {
 // spatial reorder has made particle-index order (the contacts' order)
 // unlike key (id) order: a 4-layer stack added in shuffled order and
 // reordered every step needs, once settled, under half the iterations per
-// step that the same stack solved cold needs (warm 7, cold 31 on average
-// at this tolerance; with the lookup broken, both 31).
+// step that the same stack solved cold needs (with the lookup broken, the
+// warm start needs as many as the cold).
 TEST(Engine, WarmStartCarriesImpulsesAcrossSpatialReorder) {
   auto iterations = [](bool warm, bool& keys_unsorted) {
     auto m = base_model();

@@ -430,7 +430,8 @@ TEST(Pauthenier, TimeConstantAtReferenceCurrent) {
   EXPECT_NEAR(pauthenier_time_constant(-3.29e5, 1e-4), 0.1165, 0.0005);
 }
 
-// The step form is exact for a constant field: 1 % demanded, ~1e-14 found.
+// The step form is exact for a constant field: 1 % demanded, where only
+// rounding remains.
 TEST(Pauthenier, StepUpdateFollowsClosedForm) {
   const double r = 0.5e-3;
   for (double sign : {-1.0, 1.0}) {

@@ -335,8 +335,9 @@ TEST(HostileDocuments, MergeKeysAreNamedAsUnsupported) {
              "not support");
 }
 
-// Long plain scalars once overflowed the stack of std::regex; long digit
-// strings are numbers out of range.
+// Long plain scalars are scanned without recursion (a recursive
+// std::regex overflows the stack on them); long digit strings are numbers
+// out of range.
 TEST(HostileDocuments, LongScalarsAreScannedWithoutRecursion) {
   expect_one(text_errors(std::string(kMinimal) + "seed: " + std::string(200000, '1') + "\n",
                          "digits.yaml"),
@@ -347,8 +348,9 @@ TEST(HostileDocuments, LongScalarsAreScannedWithoutRecursion) {
   expect_one(words, "seed: got 'bbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbb...', expected an integer");
 }
 
-// nlohmann's parser took a NUL for the end of the text, so what followed
-// reached the YAML parser unchecked: control characters are refused first.
+// nlohmann's parser takes a NUL for the end of the text, so what follows
+// would reach the YAML parser unchecked: control characters are refused
+// first.
 TEST(HostileDocuments, ControlCharactersAreRefusedWithTheirPlace) {
   const std::string nul("{\"ces_sim\": 1}\n\0garbage", 23);
   for (const char* name : {"nul.json", "nul.yaml"}) {

@@ -88,7 +88,7 @@ TEST(SceneUnits, RejectsWhatIsNotAQuantity) {
 }
 
 // Out of a double's range, or past the bounds on powers: refused, never
-// read as another number (the exponent used to be dropped: 4e99999 s = 4 s).
+// read as another number (with its exponent dropped, 4e99999 s would be 4 s).
 TEST(SceneUnits, RefusesNumbersOutOfRange) {
   for (const char* text : {"4e99999999999 s", "4e-99999999999 s", "1e309 m", "1e-320 s", "1e-400",
                            "2e308", "1e-300 mm^3", "1e303 km^2"}) {

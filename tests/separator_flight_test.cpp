@@ -37,7 +37,7 @@ using namespace test;
 // "Carrying load": a normal impulse above 2 m g h / μ. Once the particle has
 // left, its contact stays in the list while inside the collision envelope,
 // and the CCP's cone relaxation (Anitescu and Tasora, 2010) leaves it on the friction cone
-// with γ_n = |γ_t| / μ <= m g h / μ (measured: 0.1 % of m g h). The
+// with γ_n = |γ_t| / μ <= m g h / μ. The
 // threshold makes the detection early by at most 2/μ of m g in N: 0.15°.
 constexpr double kCarryFriction = 1000.0;
 constexpr double kLiftStep = 1e-3;  // the seed's step; 0.36° of turn per step at 60 rpm
@@ -166,8 +166,9 @@ double ode_landing(const Launch& l, DragLaw law) {
   }
 }
 
-// Semi-implicit Euler is first order: 0.9 mm off the ODE at 1 ms for the
-// setups below, 2.0 mm for the steep launch; 0.5 ms halves that.
+// Semi-implicit Euler is first order: its landing error is proportional to
+// the step, which at 1 ms reaches the 2 mm tolerance below on the steep
+// launch; 0.5 ms leaves half of it to spare.
 constexpr double kFlightStep = 5e-4;
 
 // docs/physics.md §5.6's setup, reconstructed: d = 1 mm released from the drum top

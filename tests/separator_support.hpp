@@ -79,8 +79,9 @@ double image_pull(double q, double r);
 CoronaZone saturation_zone();
 
 // A one-particle world gains nothing from threads, and the collider's
-// parallel regions (no size threshold) make every step wait at barriers: on
-// a loaded machine that took these runs from 0.03 s to 20 s. Results do not
+// parallel regions (no size threshold) make every step wait at barriers,
+// which on a loaded machine makes these runs hundreds of times slower.
+// Results do not
 // depend on the thread count (see the Determinism test).
 class SingleThread {
  public:

@@ -1,7 +1,7 @@
 """Copper grade and recovery in the conductor product against drum speed.
 
 The reference separator, fed for 0.1 s and run for 0.7 s at each speed, so
-the sweep takes about half a minute (scenes/ces_pcb.yaml itself feeds for
+that the sweep stays short (scenes/ces_pcb.yaml itself feeds for
 1 s and runs until every particle is collected). Recovery here is of the
 copper collected by then. The brush turns with the drum, as in the
 machine (scenes/machines/ces_machine.yaml).

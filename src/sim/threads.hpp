@@ -4,7 +4,7 @@
 // the count may change from one step to the next. On a machine whose cores
 // are shared with other busy processes, a worker that loses its core holds
 // up every fork and barrier of the step, and the threads waiting for it spin:
-// two threads then run 10-100 times slower than one. So the governor times
+// two threads then run many times slower than one. So the governor times
 // steps at its current count and at a neighbouring one (half or double), in
 // adjacent pairs so that both see the same work, and keeps the faster. It
 // probes again after a period that doubles while its choice holds (and is
@@ -21,8 +21,8 @@ namespace ces {
 class ThreadGovernor {
  public:
   // With adaptive false: max_threads, always. Adaptive: from one thread,
-  // since on a busy machine a step with more can cost a hundred steps' time
-  // where one at one thread on a quiet machine costs two.
+  // since on a busy machine a step with more can cost many steps' time,
+  // where starting at one thread on a quiet machine costs a few steps.
   ThreadGovernor(int max_threads, bool adaptive);
 
   // The thread count for the next step.
