@@ -40,27 +40,35 @@ exact=$(tr -d ' \n' < "$out/ces_pcb/summary.json" | grep -o '"exact":[a-z]*' | h
 simulated=$(tr -d ' \n' < "$out/ces_pcb/summary.json" | grep -o '"simulated_time_s":[0-9.e+-]*' |
             cut -d: -f2 | awk '{ printf "%.3f", $1 }')
 
-# Mass per material and product from crossings.csv, lost mass from lost.csv.
+# Mass per material and product from crossings.csv, lost mass from lost.csv;
+# and the middling's share of the feed with its standard error over the
+# feed's sampling, the estimator of products.csv's errors (the ratio
+# estimator's delta method, output/tables.hpp) from the particles' masses.
 products=$(awk -F, '
   FNR == 1 { for (k = 1; k <= NF; ++k) col[FILENAME, $k] = k; next }
-  FILENAME ~ /crossings/ { m[$col[FILENAME, "material"], $col[FILENAME, "product"]] += $col[FILENAME, "mass_kg"]
-                           fed[$col[FILENAME, "material"]] += $col[FILENAME, "mass_kg"] }
-  FILENAME ~ /lost/      { fed[$col[FILENAME, "material"]] += $col[FILENAME, "mass_kg"]
-                           lost += $col[FILENAME, "mass_kg"] }
+  { kg = $col[FILENAME, "mass_kg"]; ++n; squares += kg * kg }
+  FILENAME ~ /crossings/ { m[$col[FILENAME, "material"], $col[FILENAME, "product"]] += kg
+                           fed[$col[FILENAME, "material"]] += kg
+                           if ($col[FILENAME, "product"] == "middling") mid_squares += kg * kg }
+  FILENAME ~ /lost/      { fed[$col[FILENAME, "material"]] += kg
+                           lost += kg }
   END {
     cu = fed["copper"]; fr = fed["fr4"]; all = cu + fr
     cond = m["copper", "conductor"] + m["fr4", "conductor"]
     mid = m["copper", "middling"] + m["fr4", "middling"]
-    printf "%.2f %.2f %.2f %.1f %.1f %.1f %.1f %.1f %.1f %.2f %.2f %.2f %.2f %.2f %.2f %.1f\n",
+    r = mid / all
+    residuals = (1 - r) * (1 - r) * mid_squares + r * r * (squares - mid_squares)
+    mid_se = n < 2 ? 0 : sqrt((residuals > 0 ? residuals : 0) * n / (n - 1)) / all
+    printf "%.2f %.2f %.2f %.1f %.1f %.1f %.1f %.1f %.1f %.2f %.2f %.2f %.2f %.2f %.2f %.1f %.1f\n",
       1e3 * cu, 1e3 * fr, 1e3 * lost, 100 * cu / all,
       100 * m["copper", "conductor"] / cond, 100 * m["copper", "conductor"] / cu,
       100 * m["fr4", "nonconductor"] / fr, 100 * mid / all, 100 * m["fr4", "middling"] / (mid > 0 ? mid : 1),
       1e3 * m["copper", "nonconductor"], 1e3 * m["copper", "middling"], 1e3 * m["copper", "conductor"],
       1e3 * m["fr4", "nonconductor"], 1e3 * m["fr4", "middling"], 1e3 * m["fr4", "conductor"],
-      100 * cond / all
+      100 * cond / all, 100 * mid_se
   }' "$out/ces_pcb/crossings.csv" "$out/ces_pcb/lost.csv")
 read -r cu fr lost cu_share grade recovery fr4_rec middling mid_fr4 \
-        cu_non cu_mid cu_cond fr_non fr_mid fr_cond cond_share <<< "$products"
+        cu_non cu_mid cu_cond fr_non fr_mid fr_cond cond_share middling_se <<< "$products"
 
 # The standard errors of the targets' three product figures over the
 # feed's sampling, in percent, from products.csv.
@@ -133,13 +141,15 @@ at 70 rpm, run until every particle fed is collected or lost.
 | copper grade of the conductor product | ≥ 98 % | $grade ± $grade_se % | $(verdict "$grade" 98 ">=") |
 | copper recovery into the conductor product | ≥ 97 % | $recovery ± $recovery_se % | $(verdict "$recovery" 97 ">=") |
 | FR-4 recovery into the non-conductor product | ≥ 90 % | $fr4_rec ± $fr4_rec_se % | $(verdict "$fr4_rec" 90 ">=") |
-| middling, share of the feed mass | ≤ 10 % | $middling % | $(verdict "$middling" 10 "<=") |
+| middling, share of the feed mass | ≤ 10 % | $middling ± $middling_se % | $(verdict "$middling" 10 "<=") |
 | fed = collected + lost, none left | exact | exact: $exact, active: $(balance active), lost: $(balance lost) particles ($lost g) | $balance_ok |
 | wall time of the run | ≤ 180 s on 2 cores | $wall s (load average $load0 at the start, $load1 at the end) | $time_ok |
 
 ± the run's standard error over the sampling of the feed (products.csv,
-[outputs.md](outputs.md)): another seed's particles move the figure by
-about that; 0 where every particle of the material went one way.
+[outputs.md](outputs.md); the middling's share by the same estimator from
+the particles in crossings.csv and lost.csv): another seed's particles
+move the figure by about that; 0 where every particle of the material
+went one way.
 
 Fed: $cu g of copper and $fr g of FR-4 (copper $cu_share % of the mass); the
 run ended at t = $simulated s. Products, g:
