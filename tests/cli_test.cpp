@@ -561,6 +561,7 @@ TEST(Cli, CompareReadsProductsFromBeforeTheStandardErrors) {
   const Outcome changed = ces_sim("compare " + a.string() + " " + b.string());
   EXPECT_EQ(changed.code, 1) << changed.out;
   EXPECT_NE(changed.out.find("recovery: "), std::string::npos) << changed.out;
+  EXPECT_NE(changed.out.find(left_out + "A"), std::string::npos) << changed.out;
 }
 
 void expect_same_tables(const fs::path& a, const fs::path& b) {

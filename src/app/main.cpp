@@ -258,12 +258,13 @@ int compare(const Args& args) {
     std::printf("%s\n", r.differences[i].c_str());
   if (r.differences.size() > kShown)
     std::printf("... and %zu more differences\n", r.differences.size() - kShown);
+  // What was compared, and what could not be, either way.
+  for (const std::string& note : r.notes) std::printf("%s\n", note.c_str());
   if (!r.agree()) {
     std::printf("DIFFER: %zu differences between %s and %s\n", r.differences.size(),
                 args.dir_a.c_str(), args.dir_b.c_str());
     return kMismatch;
   }
-  for (const std::string& note : r.notes) std::printf("%s\n", note.c_str());
   std::printf("AGREE: %s and %s\n", args.dir_a.c_str(), args.dir_b.c_str());
   return kSuccess;
 }
