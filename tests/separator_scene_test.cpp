@@ -559,8 +559,8 @@ Share short_share(const std::vector<double>& x, double gap) {
 // copper median (the feed rate acts on the tail, and a count in the tail is
 // the least noisy measure of it on 50-100 copper particles), with a
 // binomial standard error, and the 5-95 % range. One run lands too few
-// copper particles (50-80) for its short share to show the rise at every
-// seed, so the 160 g/s case pools seeds 1-3. Asserted: the
+// copper particles for its short share to show the rise at every seed,
+// so the 160 g/s case pools seeds 1-3. Asserted: the
 // short share rises by more than two standard errors and the range by more
 // than 20 mm; nearly all the copper lands (at least 90 %), beyond the FR-4.
 TEST(SeparatorScene, CopperLandingWidensWithFeedRate) {

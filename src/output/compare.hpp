@@ -8,9 +8,9 @@
 //    the mass-weighted landing positions along the collector axis within
 //    tol_w1_mm.
 // Differences in layout (bins, products) are always differences; a table
-// without the header ces-sim writes is refused, but for a products.csv
-// from before its standard errors, whose columns both folders have are
-// compared (a note names the others).
+// without the header ces-sim writes is refused. A products.csv from before
+// its standard-error columns is read, and compared on the columns both
+// folders have (a note names the others).
 #pragma once
 #include <cstdint>
 #include <filesystem>
