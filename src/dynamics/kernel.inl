@@ -5,10 +5,7 @@
 // kernel_avx512.cpp each include it once, with CES_KERNEL_ISA naming their
 // instruction set; the code below runs beyond baseline x86-64 only in
 // those (isa.hpp chooses among them). Lane l holds contact 4 b + l of
-// block b. The AVX-512 build's gradient pass takes two blocks to a
-// 512-bit vector (d8: lanes 0-3 block b, 4-7 block b + 1): the same
-// operations on each lane, and every sum adds block b's terms before
-// block b + 1's (add_in_order), so it gives the bits of two 4-lane blocks.
+// block b.
 //
 // It runs on world rows: a contact's three rows hold its impulse as a world
 // vector P = n x_n + t1 x_t1 + t2 x_t2, and its gradient is the relative
@@ -64,13 +61,6 @@ namespace CES_KERNEL_NAMESPACE {
 using d4 = double __attribute__((vector_size(32)));
 using f4 = float __attribute__((vector_size(16)));
 constexpr std::size_t kVec = 4;  // lanes of d4: CcpProblem::kLanes
-#if CES_KERNEL_ISA == 2
-using d8 = double __attribute__((vector_size(64)));
-#endif
-template <class V>
-using MaskOf = decltype(V{} < V{});
-template <class V>
-constexpr std::size_t kLanesOf = sizeof(V) / sizeof(double);
 
 [[gnu::always_inline]] inline d4 load(const double* p) {
   d4 v;
@@ -90,10 +80,8 @@ constexpr std::size_t kLanesOf = sizeof(V) / sizeof(double);
 #endif
 }
 [[gnu::always_inline]] inline d4 widen(const double* p) { return load(p); }
-template <class V>
-[[gnu::always_inline]] inline V select(MaskOf<V> mask, V a, V b) { return mask ? a : b; }
-template <class V>
-[[gnu::always_inline]] inline V vmax(V a, V b) { return select<V>(a < b, b, a); }  // std::max(a, b)'s lanes
+[[gnu::always_inline]] inline d4 select(decltype(d4{} < d4{}) mask, d4 a, d4 b) { return mask ? a : b; }
+[[gnu::always_inline]] inline d4 vmax(d4 a, d4 b) { return select(a < b, b, a); }  // std::max(a, b)'s lanes
 [[gnu::always_inline]] inline d4 vsqrt(d4 a) {
 #if defined(__AVX__)
   return d4(_mm256_sqrt_pd(__m256d(a)));
@@ -106,91 +94,38 @@ template <class V>
 }
 double lane_sum(d4 a) { return (a[0] + a[1]) + (a[2] + a[3]); }
 
-// shuf<i...>(a, b): __builtin_shufflevector(a, b, i...) of four lanes; on
-// d8, the same in each half (block b's lanes with block b's, b + 1's with
-// b + 1's), so the transposes below serve both widths.
-template <int i0, int i1, int i2, int i3>
-[[gnu::always_inline]] inline d4 shuf(d4 a, d4 b) {
-  return __builtin_shufflevector(a, b, i0, i1, i2, i3);
-}
-[[gnu::always_inline]] inline void row_store(double* p, std::size_t j, d4 v) { store(p + 4 * j, v); }
-// acc += x[0]; acc += x[1]; acc += x[2].
-[[gnu::always_inline]] inline void add_in_order(d4& acc, const d4 (&x)[3]) {
-  for (const d4& t : x) acc += t;
-}
-#if CES_KERNEL_ISA == 2
-template <int i0, int i1, int i2, int i3>
-[[gnu::always_inline]] inline d8 shuf(d8 a, d8 b) {
-  constexpr auto lo = [](int i) { return i < 4 ? i : i + 4; };
-  constexpr auto hi = [](int i) { return i < 4 ? i + 4 : i + 8; };
-  return __builtin_shufflevector(a, b, lo(i0), lo(i1), lo(i2), lo(i3), hi(i0), hi(i1), hi(i2),
-                                 hi(i3));
-}
-[[gnu::always_inline]] inline d8 concat(d4 lo, d4 hi) {
-  return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
-}
-[[gnu::always_inline]] inline d4 low(d8 v) { return __builtin_shufflevector(v, v, 0, 1, 2, 3); }
-[[gnu::always_inline]] inline d4 high(d8 v) { return __builtin_shufflevector(v, v, 4, 5, 6, 7); }
-[[gnu::always_inline]] inline void row_store(double* p, std::size_t j, d8 v) {
-  store(p + 4 * j, low(v));
-  store(p + 12 + 4 * j, high(v));
-}
-// Block b's three terms, then block b + 1's: the 4-lane order.
-[[gnu::always_inline]] inline void add_in_order(d4& acc, const d8 (&x)[3]) {
-  for (const d8& t : x) acc += low(t);
-  for (const d8& t : x) acc += high(t);
-}
-[[gnu::always_inline]] inline d8 vsqrt(d8 a) {
-  // Masked with every lane on: _mm512_sqrt_pd's undefined source trips GCC 12's
-  // -Wmaybe-uninitialized.
-  return d8(_mm512_mask_sqrt_pd(__m512d(a), 0xff, __m512d(a)));
-}
-[[gnu::always_inline]] inline bool all_lanes(MaskOf<d8> m) {
-  return _mm512_test_epi64_mask(__m512i(m), __m512i(m)) == 0xff;
-}
-#endif
-
-// A vector's rows j: a block's rows 4 j .. 4 j + 3 (it has 12); on d8, then
-// the next block's, which follow them. row_store writes them back.
-template <class V>
-[[gnu::always_inline]] inline V row_load(const double* p, std::size_t j) {
-  if constexpr (kLanesOf<V> == 4) return load(p + 4 * j);
-#if CES_KERNEL_ISA == 2
-  else return concat(load(p + 4 * j), load(p + 12 + 4 * j));
-#endif
-}
-// The lanes of a block's four numbers at p (frame_'s, metric_'s); on d8,
-// then the next block's, `stride` on.
-template <class V, class T>
-[[gnu::always_inline]] inline V block_lanes(const T* p, [[maybe_unused]] std::size_t stride) {
-  if constexpr (kLanesOf<V> == 4) return widen(p);
-#if CES_KERNEL_ISA == 2
-  else return concat(widen(p), widen(p + stride));
-#endif
-}
-
-// The x, y, z rows of a vector's contacts, lane = contact.
-template <class V>
+// The x, y, z rows of four contacts, lane = contact.
 struct Lanes3 {
-  V c[3];
+  d4 c[3];
 };
 // 12 doubles [x0 y0 z0 x1 y1 z1 ...], as three vectors a, <-> the lanes.
-template <class V>
-[[gnu::always_inline]] inline Lanes3<V> lanes_of(const V a[3]) {
-  const V x01 = shuf<0, 3, 6, 7>(a[0], a[1]);
-  const V y01 = shuf<1, 4, 7, 7>(a[0], a[1]);
-  const V z01 = shuf<2, 5, 5, 5>(a[0], a[1]);
-  return {{shuf<0, 1, 2, 5>(x01, a[2]), shuf<0, 1, 2, 6>(y01, a[2]), shuf<0, 1, 4, 7>(z01, a[2])}};
+[[gnu::always_inline]] inline Lanes3 lanes_of(const d4 a[3]) {
+  const d4 x01 = __builtin_shufflevector(a[0], a[1], 0, 3, 6, 7);
+  const d4 y01 = __builtin_shufflevector(a[0], a[1], 1, 4, 7, 7);
+  const d4 z01 = __builtin_shufflevector(a[0], a[1], 2, 5, 5, 5);
+  return {{__builtin_shufflevector(x01, a[2], 0, 1, 2, 5),
+           __builtin_shufflevector(y01, a[2], 0, 1, 2, 6),
+           __builtin_shufflevector(z01, a[2], 0, 1, 4, 7)}};
 }
-template <class V>
-[[gnu::always_inline]] inline void rows_of(const Lanes3<V>& r, V a[3]) {
-  const V &x = r.c[0], &y = r.c[1], &z = r.c[2];
-  a[0] = shuf<0, 1, 4, 2>(shuf<0, 4, 1, 1>(x, y), z);
-  a[1] = shuf<0, 1, 6, 2>(shuf<1, 5, 2, 2>(y, z), x);
-  a[2] = shuf<0, 1, 7, 2>(shuf<2, 7, 3, 3>(z, x), y);
+[[gnu::always_inline]] inline void rows_of(const Lanes3& r, d4 a[3]) {
+  const d4 &x = r.c[0], &y = r.c[1], &z = r.c[2];
+  a[0] = __builtin_shufflevector(__builtin_shufflevector(x, y, 0, 4, 1, 1), z, 0, 1, 4, 2);
+  a[1] = __builtin_shufflevector(__builtin_shufflevector(y, z, 1, 5, 2, 2), x, 0, 1, 6, 2);
+  a[2] = __builtin_shufflevector(__builtin_shufflevector(z, x, 2, 7, 3, 3), y, 0, 1, 7, 2);
+}
+[[gnu::always_inline]] inline Lanes3 load_rows(const double* p) {
+  const d4 a[3] = {load(p), load(p + 4), load(p + 8)};
+  return lanes_of(a);
+}
+[[gnu::always_inline]] inline void store_rows(double* p, const Lanes3& r) {
+  d4 a[3];
+  rows_of(r, a);
+  for (std::size_t j = 0; j < 3; ++j) store(p + 4 * j, a[j]);
 }
 
-[[gnu::always_inline]] inline bool all_lanes(MaskOf<d4> m) {
+using mask4 = decltype(d4{} < d4{});
+
+[[gnu::always_inline]] inline bool all_lanes(mask4 m) {
 #if defined(__AVX__)
   return _mm256_movemask_pd(__m256d(m)) == 0xf;
 #else
@@ -198,17 +133,12 @@ template <class V>
 #endif
 }
 
-// A vector's normals and friction coefficients, lane = contact.
-template <class V>
+// A block's normals and friction coefficients, lane = contact.
 struct FrameLanes {
-  V n[3], mu;
+  d4 n[3], mu;
 };
-// `stride`: frame_'s block (CcpProblem::kFrameBlock).
-template <class V>
-[[gnu::always_inline]] inline FrameLanes<V> load_frame(const StoredScalar* f, std::size_t stride) {
-  return {{block_lanes<V>(f, stride), block_lanes<V>(f + kVec, stride),
-           block_lanes<V>(f + 2 * kVec, stride)},
-          block_lanes<V>(f + 3 * kVec, stride)};
+[[gnu::always_inline]] inline FrameLanes load_frame(const StoredScalar* f) {
+  return {{widen(f), widen(f + kVec), widen(f + 2 * kVec)}, widen(f + 3 * kVec)};
 }
 
 // project_cone's cases on world rows, lane by lane: P = Π(z) onto
@@ -216,39 +146,37 @@ template <class V>
 // case's square root and division are slow (tens of cycles, not pipelined),
 // so a block none of whose lanes slides, most of a flow's blocks, skips
 // them.
-template <class V>
-[[gnu::always_inline]] inline void project_cone(const FrameLanes<V>& F, Lanes3<V>& z) {
-  const V* n = F.n;
-  const V zn = n[0] * z.c[0] + n[1] * z.c[1] + n[2] * z.c[2];
-  const V t[3] = {z.c[0] - n[0] * zn, z.c[1] - n[1] * zn, z.c[2] - n[2] * zn};
-  const V s2 = t[0] * t[0] + t[1] * t[1] + t[2] * t[2], mu = F.mu, mu2 = mu * mu;
+[[gnu::always_inline]] inline void project_cone(const FrameLanes& F, Lanes3& z) {
+  const d4* n = F.n;
+  const d4 zn = n[0] * z.c[0] + n[1] * z.c[1] + n[2] * z.c[2];
+  const d4 t[3] = {z.c[0] - n[0] * zn, z.c[1] - n[1] * zn, z.c[2] - n[2] * zn};
+  const d4 s2 = t[0] * t[0] + t[1] * t[1] + t[2] * t[2], mu = F.mu, mu2 = mu * mu;
   const auto inside = (zn >= 0.0) & (s2 <= mu2 * zn * zn);
   const auto polar = (zn <= 0.0) & (mu2 * s2 <= zn * zn);
-  const V zero = {}, pressing = vmax(zn, zero);  // a frictionless lane's normal part
+  const d4 zero = {}, pressing = vmax(zn, zero);  // a frictionless lane's normal part
   const auto frictionless = mu <= 0.0;
   const auto keep = ~frictionless & inside, clear = ~frictionless & ~inside & polar;
   if (all_lanes(keep | clear | frictionless)) {
-    for (auto& c : z.c) c = select<V>(keep, c, zero);
-    for (int c = 0; c < 3; ++c) z.c[c] = select<V>(frictionless, n[c] * pressing, z.c[c]);
+    for (auto& c : z.c) c = select(keep, c, zero);
+    for (int c = 0; c < 3; ++c) z.c[c] = select(frictionless, n[c] * pressing, z.c[c]);
     return;
   }
-  const V s = vsqrt(s2);
-  const V along = mu * s + zn, q = 1.0 / ((mu2 + 1.0) * s);
-  const V pn = select<V>(frictionless, pressing, along * s * q), scale = mu * along * q;
+  const d4 s = vsqrt(s2);
+  const d4 along = mu * s + zn, q = 1.0 / ((mu2 + 1.0) * s);
+  const d4 pn = select(frictionless, pressing, along * s * q), scale = mu * along * q;
   for (int c = 0; c < 3; ++c) {
-    const V slid = n[c] * pn + select<V>(frictionless, zero, t[c] * scale);
-    z.c[c] = select<V>(keep, z.c[c], select<V>(clear, zero, slid));
+    const d4 slid = n[c] * pn + select(frictionless, zero, t[c] * scale);
+    z.c[c] = select(keep, z.c[c], select(clear, zero, slid));
   }
 }
 
 // One number per contact (lane = contact) spread over a block's 12 rows,
-// three to a contact, as row_load finds them: [c0 c0 c0 c1] [c1 c1 c2 c2]
+// three to a contact, as load_rows finds them: [c0 c0 c0 c1] [c1 c1 c2 c2]
 // [c2 c3 c3 c3].
-template <class V>
-[[gnu::always_inline]] inline void spread_lanes(V c, V out[3]) {
-  out[0] = shuf<0, 0, 0, 1>(c, c);
-  out[1] = shuf<1, 1, 2, 2>(c, c);
-  out[2] = shuf<2, 3, 3, 3>(c, c);
+[[gnu::always_inline]] inline void spread_lanes(d4 c, d4 out[3]) {
+  out[0] = __builtin_shufflevector(c, c, 0, 0, 0, 1);
+  out[1] = __builtin_shufflevector(c, c, 1, 1, 2, 2);
+  out[2] = __builtin_shufflevector(c, c, 2, 3, 3, 3);
 }
 
 // The rows 3 k0 .. 3 k0 + 11 of a block: pointers into the vectors for a
@@ -282,63 +210,47 @@ template <class Block>
   for (; k0 + kVec <= end; k0 += kVec) block(k0, std::integral_constant<std::size_t, kVec>{});
   if (k0 < end) block(k0, end - k0);
 }
-// for_blocks, but in the AVX-512 build pair(k0) first takes the whole
-// blocks two at a time (contacts k0 .. k0 + 7).
-template <class Pair, class Block>
-[[gnu::always_inline]] inline void for_vectors(std::size_t begin, std::size_t end,
-                                               [[maybe_unused]] Pair&& pair, Block&& block) {
-#if CES_KERNEL_ISA == 2
-  for (; begin + 2 * kVec <= end; begin += 2 * kVec) pair(begin);
-#endif
-  for_blocks(begin, end, block);
-}
 
 // Lane sums of a trial's dd, d.gy and uphill (CcpProblem::TrialSums).
 struct TrialLanes {
   d4 dd = {}, d_gy = {}, uphill = {};
 };
 
-// One vector's contacts of a trial (apgd_step): x1 = Π(y - step gy) into
-// p1, with y = ca x - cb x_old and gy = ca gx - cb g_old (pold, pgold
-// unread when cb = 0); adds its sums to `sums`. `metric_block`: metric_'s
-// block (CcpProblem::kMetricBlock).
-template <class V>
+// One block of a trial (apgd_step): x1 = Π(y - step gy) into p1, with y =
+// ca x - cb x_old and gy = ca gx - cb g_old (pold, pgold unread when cb =
+// 0); adds its sums to `sums`.
 [[gnu::always_inline]] inline void trial_block(const double* px, const double* pold,
                                                const double* pgx, const double* pgold,
                                                CcpProblem::Momentum mo, double step,
-                                               const FrameLanes<V>& F, const float* metric,
-                                               std::size_t metric_block, double* p1,
-                                               TrialLanes& sums) {
+                                               const FrameLanes& F, const float* metric,
+                                               double* p1, TrialLanes& sums) {
   // The contacts' steps and the weights of |d|^2 (CcpProblem::metric_),
   // spread over the rows: a row vector holds a contact's rows and the next's.
-  V st[3], wd[3];
-  spread_lanes(step * block_lanes<V>(metric, metric_block), st);
-  spread_lanes(block_lanes<V>(metric + kVec, metric_block), wd);
+  d4 st[3], wd[3];
+  spread_lanes(step * widen(metric), st);
+  spread_lanes(widen(metric + kVec), wd);
   // In registers throughout: the rows transposed to lanes and back.
-  V y[3], gy[3], z[3];
+  d4 y[3], gy[3], z[3];
   for (std::size_t j = 0; j < 3; ++j) {
-    y[j] = row_load<V>(px, j);
-    gy[j] = row_load<V>(pgx, j);
+    y[j] = load(px + 4 * j);
+    gy[j] = load(pgx + 4 * j);
     if (mo.cb != 0.0) {
-      y[j] = mo.ca * y[j] - mo.cb * row_load<V>(pold, j);
-      gy[j] = mo.ca * gy[j] - mo.cb * row_load<V>(pgold, j);
+      y[j] = mo.ca * y[j] - mo.cb * load(pold + 4 * j);
+      gy[j] = mo.ca * gy[j] - mo.cb * load(pgold + 4 * j);
     }
     z[j] = y[j] - st[j] * gy[j];
   }
-  Lanes3<V> r = lanes_of(z);
+  Lanes3 r = lanes_of(z);
   project_cone(F, r);
-  V x1[3], dd[3], d_gy[3], uphill[3];
+  d4 x1[3];
   rows_of(r, x1);
   for (std::size_t j = 0; j < 3; ++j) {
-    row_store(p1, j, x1[j]);
-    const V v1 = x1[j], d = v1 - y[j];
-    dd[j] = wd[j] * d * d;
-    d_gy[j] = d * gy[j];
-    uphill[j] = gy[j] * (v1 - row_load<V>(px, j));
+    store(p1 + 4 * j, x1[j]);
+    const d4 v1 = x1[j], d = v1 - y[j];
+    sums.dd += wd[j] * d * d;
+    sums.d_gy += d * gy[j];
+    sums.uphill += gy[j] * (v1 - load(px + 4 * j));
   }
-  add_in_order(sums.dd, dd);
-  add_in_order(sums.d_gy, d_gy);
-  add_in_order(sums.uphill, uphill);
 }
 
 // A block's lever arms (lever_ from contact k0 on: 24 numbers), component
@@ -371,89 +283,61 @@ template <class T>
   rb[2] = d4(_mm256_cvtps_pd(_mm_shuffle_ps(s01, s23, _MM_SHUFFLE(3, 1, 3, 1))));
 }
 #endif
-#if CES_KERNEL_ISA == 2
-// Two blocks' lever arms (from contact k0 on: 48 numbers).
-template <class T>
-[[gnu::always_inline]] inline void levers(const T* L, d8 ra[3], d8 rb[3]) {
-  d4 ra0[3], rb0[3], ra1[3], rb1[3];
-  levers(L, ra0, rb0);
-  levers(L + 24, ra1, rb1);
-  for (std::size_t c = 0; c < 3; ++c) {
-    ra[c] = concat(ra0[c], ra1[c]);
-    rb[c] = concat(rb0[c], rb1[c]);
-  }
-}
-#endif
 
-// Body i[l]'s velocity in v as one vector (its fourth number the next
-// body's, unused; dv, dw have a spare); on d8, with body i[l + 4]'s.
-template <class V>
-[[gnu::always_inline]] inline V body_row(const std::vector<Vec3>& v, const std::size_t* i,
-                                         std::size_t l) {
-  if constexpr (kLanesOf<V> == 4) return load(v[i[l]].data());
-#if CES_KERNEL_ISA == 2
-  else return concat(load(v[i[l]].data()), load(v[i[l + 4]].data()));
-#endif
-}
-
-// g = J dv + b n of a vector's contacts (world rows): count (<= its lanes)
-// contacts from a, b (body indices), frame F, lever arms and bias; lane =
-// contact, lanes past count zero.
-template <class V>
-[[gnu::always_inline]] inline Lanes3<V> gather_block(const FrameLanes<V>& F,
-                                                     const StoredScalar* lever,
-                                                     const std::int32_t* a, const std::int32_t* b,
-                                                     std::size_t count,
-                                                     const std::vector<Vec3>& dv,
-                                                     const std::vector<Vec3>& dw,
-                                                     const double* bias) {
-  constexpr std::size_t lanes_of_v = kLanesOf<V>;
-  std::size_t ia[lanes_of_v], ib[lanes_of_v];
-  for (std::size_t l = 0; l < lanes_of_v; ++l) {
+// g = J dv + b n of a block's contacts (world rows): count (<= 4) contacts
+// from a, b (body indices), frame F, lever arms and bias; lane = contact,
+// lanes past count zero.
+[[gnu::always_inline]] inline Lanes3 gather_block(const FrameLanes& F, const StoredScalar* lever,
+                                                  const std::int32_t* a, const std::int32_t* b,
+                                                  std::size_t count, const std::vector<Vec3>& dv,
+                                                  const std::vector<Vec3>& dw, const double* bias) {
+  std::size_t ia[kVec], ib[kVec];
+  for (std::size_t l = 0; l < kVec; ++l) {
     ia[l] = std::size_t(a[std::min(l, count - 1)]);
     ib[l] = std::size_t(b[std::min(l, count - 1)]);
   }
-  // Four bodies' velocities (in each block) as x, y, z lanes: each loaded
-  // as one vector and transposed, 11 instructions where gathering lane by
-  // lane takes 16.
-  auto lanes = [&](const std::vector<Vec3>& v, const std::size_t* i, V out[3]) {
-    const V r0 = body_row<V>(v, i, 0), r1 = body_row<V>(v, i, 1), r2 = body_row<V>(v, i, 2),
-            r3 = body_row<V>(v, i, 3);
-    const V xz01 = shuf<0, 4, 2, 6>(r0, r1), y01 = shuf<1, 5, 3, 7>(r0, r1);
-    const V xz23 = shuf<0, 4, 2, 6>(r2, r3), y23 = shuf<1, 5, 3, 7>(r2, r3);
-    out[0] = shuf<0, 1, 4, 5>(xz01, xz23);
-    out[1] = shuf<0, 1, 4, 5>(y01, y23);
-    out[2] = shuf<2, 3, 6, 7>(xz01, xz23);
+  // Four bodies' velocities as x, y, z lanes: each loaded as one vector
+  // (its fourth number the next body's, unused; dv, dw have a spare) and
+  // transposed, 11 instructions where gathering lane by lane takes 16.
+  auto lanes = [&](const std::vector<Vec3>& v, const std::size_t* i, d4 out[3]) {
+    const d4 r0 = load(v[i[0]].data()), r1 = load(v[i[1]].data()), r2 = load(v[i[2]].data()),
+             r3 = load(v[i[3]].data());
+    const d4 xz01 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);
+    const d4 y01 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);
+    const d4 xz23 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
+    const d4 y23 = __builtin_shufflevector(r2, r3, 1, 5, 3, 7);
+    out[0] = __builtin_shufflevector(xz01, xz23, 0, 1, 4, 5);
+    out[1] = __builtin_shufflevector(y01, y23, 0, 1, 4, 5);
+    out[2] = __builtin_shufflevector(xz01, xz23, 2, 3, 6, 7);
   };
   // Relative velocity at the contact points, component by component.
-  V va[3], wa[3], vb[3], wb[3];
+  d4 va[3], wa[3], vb[3], wb[3];
   lanes(dv, ia, va);
   lanes(dw, ia, wa);
   lanes(dv, ib, vb);
   lanes(dw, ib, wb);
-  V ra[3], rb[3];
+  d4 ra[3], rb[3];
   levers(lever, ra, rb);
-  const V b_n = block_lanes<V>(bias, kVec);
-  Lanes3<V> g;
+  const d4 b_n = load(bias);
+  Lanes3 g;
   for (int c = 0; c < 3; ++c) {
     const int c1 = (c + 1) % 3, c2 = (c + 2) % 3;  // w x r, as Eigen's cross
-    const V rel = (vb[c] + (wb[c1] * rb[c2] - wb[c2] * rb[c1])) -
-                  (va[c] + (wa[c1] * ra[c2] - wa[c2] * ra[c1]));
+    const d4 rel = (vb[c] + (wb[c1] * rb[c2] - wb[c2] * rb[c1])) -
+                   (va[c] + (wa[c1] * ra[c2] - wa[c2] * ra[c1]));
     g.c[c] = rel + b_n * F.n[c];
   }
-  // Padding lanes (a short block, never on d8): zero, whatever the velocities.
-  if (lanes_of_v == 4 && count < lanes_of_v) {
-    const V lane = {0.0, 1.0, 2.0, 3.0};
+  if (count < kVec) {  // padding lanes: zero, whatever the velocities
+    const d4 lane = {0.0, 1.0, 2.0, 3.0};
     const auto valid = lane < double(count);
-    for (auto& c : g.c) c = select<V>(valid, c, V{});
+    for (auto& c : g.c) c = select(valid, c, d4{});
   }
   return g;
 }
 
 // g += eps (n.P) n, a yielding contact's spring (CcpProblem::softness), lane
 // by lane; eps is 0 on a rigid lane.
-[[gnu::always_inline]] inline void add_spring(const FrameLanes<d4>& F, d4 eps,
-                                              const Lanes3<d4>& P, Lanes3<d4>& g) {
+[[gnu::always_inline]] inline void add_spring(const FrameLanes& F, d4 eps, const Lanes3& P,
+                                       Lanes3& g) {
   const d4 pn = F.n[0] * P.c[0] + F.n[1] * P.c[1] + F.n[2] * P.c[2];
   for (int c = 0; c < 3; ++c) g.c[c] += eps * pn * F.n[c];
 }
@@ -543,24 +427,13 @@ CcpProblem::TrialSums CcpProblem::apgd_step_on(ConstSpan x, ConstSpan x_old, Spa
   const bool old = mo.cb != 0.0;
   auto pass = [&](std::size_t begin, std::size_t end, TrialSums& part) {
     TrialLanes sums;
-    auto trial = [&]<class V>(V, std::size_t k0, const double* px, const double* pold,
-                              const double* pgx, const double* pgold, double* p1)
-                     __attribute__((always_inline)) {
-      trial_block(px, pold, pgx, pgold, mo, step,
-                  load_frame<V>(&frame_[k0 / kLanes * kFrameBlock], kFrameBlock),
-                  &metric_[k0 / kLanes * kMetricBlock], kMetricBlock, p1, sums);
-    };
-    auto pair = [&]([[maybe_unused]] std::size_t k0) __attribute__((always_inline)) {
-#if CES_KERNEL_ISA == 2
-      const std::size_t i = 3 * k0;
-      trial(d8{}, k0, &x[i], old ? &x_old[i] : &x[i], &gx[i], old ? &g_old[i] : &gx[i], &x1[i]);
-#endif
-    };
-    for_vectors(begin, end, pair, [&](std::size_t k0, auto count) __attribute__((always_inline)) {
+    for_blocks(begin, end, [&](std::size_t k0, auto count) __attribute__((always_inline)) {
       BlockRows blk(3 * k0, 3 * count);
       const double *px = blk.in(x, 0), *pgx = blk.in(gx, 1);
       const double *pold = old ? blk.in(x_old, 2) : px, *pgold = old ? blk.in(g_old, 3) : pgx;
-      trial(d4{}, k0, px, pold, pgx, pgold, blk.out(x1, 4));
+      double* p1 = blk.out(x1, 4);
+      trial_block(px, pold, pgx, pgold, mo, step, load_frame(&frame_[k0 / kLanes * kFrameBlock]),
+                  &metric_[k0 / kLanes * kMetricBlock], p1, sums);
       blk.flush(x1, 4);
     });
     part = {lane_sum(sums.dd), -lane_sum(sums.d_gy), lane_sum(sums.uphill)};
@@ -595,73 +468,36 @@ CcpProblem::TrialSums CcpProblem::apgd_gradient_on(ConstSpan x1, Span g1, ConstS
   auto pass = [&](std::size_t begin, std::size_t end, Parts& part) {
     d4 d_g1 = {}, res2 = {};
     TrialLanes sums;
-    // The contacts of one vector from k0 on (count of them), their rows of
-    // x1, x, x_old at p1, px, pold; writes their rows of g1 at pg. The
-    // caller then makes the next trial (trial_block) if `ahead`.
-    auto contacts = [&]<class V>(std::size_t k0, std::size_t count, const double* p1,
-                                 const double* px, const double* pold, double* pg,
-                                 const FrameLanes<V>& F) __attribute__((always_inline)) {
-      Lanes3<V> g = gather_block(F, &lever_[6 * k0], &a_[k0], &b_[k0], count, dv_, dw_, &bias_[k0]);
-      V rows1[3];
-      for (std::size_t j = 0; j < 3; ++j) rows1[j] = row_load<V>(p1, j);
-      const Lanes3<V> r1 = lanes_of(rows1);
-      if constexpr (kLanesOf<V> == 4)  // the wider vectors take rigid blocks only
-        if (soft_block_[k0 / kLanes]) add_spring(F, load(&softness_[k0]), r1, g);
-      V rows_g[3], d_g[3], res_sq[3];
-      rows_of(g, rows_g);
+    for_blocks(begin, end, [&](std::size_t k0, auto count) __attribute__((always_inline)) {
+      BlockRows blk(3 * k0, 3 * count);
+      const FrameLanes F = load_frame(&frame_[k0 / kLanes * kFrameBlock]);
+      const double *p1 = blk.in(x1, 0), *px = blk.in(x, 1), *pold = old ? blk.in(x_old, 2) : px;
+      Lanes3 g = gather_block(F, &lever_[6 * k0], &a_[k0], &b_[k0], count, dv_, dw_, &bias_[k0]);
+      if (soft_block_[k0 / kLanes]) add_spring(F, load(&softness_[k0]), load_rows(p1), g);
+      double* pg = blk.out(g1, 3);
+      store_rows(pg, g);
+      blk.flush(g1, 3);
       // d.g1 with d = x1 - y, y made again as apgd_step made it (the same
       // bits): cheaper than storing y there and reading it here.
-      for (std::size_t j = 0; j < 3; ++j) {
-        row_store(pg, j, rows_g[j]);
-        const V y =
-            old ? mo.ca * row_load<V>(px, j) - mo.cb * row_load<V>(pold, j) : row_load<V>(px, j);
-        d_g[j] = (rows1[j] - y) * rows_g[j];
+      for (std::size_t j = 0; j < 12; j += 4) {
+        const d4 y = old ? mo.ca * load(px + j) - mo.cb * load(pold + j) : load(px + j);
+        d_g1 += (load(p1 + j) - y) * load(pg + j);
       }
-      add_in_order(d_g1, d_g);
-      Lanes3<V> q;
+      const Lanes3 r1 = load_rows(p1);
+      Lanes3 q;
       for (int c = 0; c < 3; ++c) q.c[c] = r1.c[c] - s_res * g.c[c];
       project_cone(F, q);
       for (int c = 0; c < 3; ++c) {
-        const V res = (r1.c[c] - q.c[c]) * inv_s;
-        res_sq[c] = res * res;
+        const d4 res = (r1.c[c] - q.c[c]) * inv_s;
+        res2 += res * res;
       }
-      add_in_order(res2, res_sq);
-    };
-    auto block = [&](std::size_t k0, auto count) __attribute__((always_inline)) {
-      BlockRows blk(3 * k0, 3 * count);
-      const FrameLanes<d4> F = load_frame<d4>(&frame_[k0 / kLanes * kFrameBlock], kFrameBlock);
-      const double *p1 = blk.in(x1, 0), *px = blk.in(x, 1), *pold = old ? blk.in(x_old, 2) : px;
-      double* pg = blk.out(g1, 3);
-      contacts(k0, count, p1, px, pold, pg, F);
-      blk.flush(g1, 3);
       if (ahead) {  // x1 is the next trial's x, x its x_old, g1 its gx
         const double* pgold = ahead_old ? blk.in(next.gx, 4) : pg;
         trial_block(p1, px, pg, pgold, next.momentum, next.step, F,
-                    &metric_[k0 / kLanes * kMetricBlock], kMetricBlock, blk.out(next.x2, 5), sums);
+                    &metric_[k0 / kLanes * kMetricBlock], blk.out(next.x2, 5), sums);
         blk.flush(next.x2, 5);
       }
-    };
-    // Two rigid blocks at a time, straight from the vectors; the springs'
-    // blocks one by one.
-    auto pair = [&]([[maybe_unused]] std::size_t k0) __attribute__((always_inline)) {
-#if CES_KERNEL_ISA == 2
-      const std::size_t blk = k0 / kLanes;
-      if (soft_block_[blk] || soft_block_[blk + 1]) {
-        block(k0, std::integral_constant<std::size_t, kVec>{});
-        block(k0 + kVec, std::integral_constant<std::size_t, kVec>{});
-        return;
-      }
-      const FrameLanes<d8> F = load_frame<d8>(&frame_[blk * kFrameBlock], kFrameBlock);
-      const std::size_t i = 3 * k0;
-      const double *p1 = &x1[i], *px = &x[i], *pold = old ? &x_old[i] : px;
-      double* pg = &g1[i];
-      contacts(k0, 2 * kVec, p1, px, pold, pg, F);
-      if (ahead)
-        trial_block(p1, px, pg, ahead_old ? &next.gx[i] : pg, next.momentum, next.step, F,
-                    &metric_[blk * kMetricBlock], kMetricBlock, &next.x2[i], sums);
-#endif
-    };
-    for_vectors(begin, end, pair, block);
+    });
     part.here.dnd = lane_sum(d_g1);
     part.here.res_sum = lane_sum(res2);
     part.ahead = {lane_sum(sums.dd), -lane_sum(sums.d_gy), lane_sum(sums.uphill)};
