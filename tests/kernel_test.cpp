@@ -22,16 +22,16 @@ test::Outcome with_kernel(const std::string& kernel, const std::string& args) {
   return r;
 }
 
-// A hopper draining (APGD on up to about 2 000 contacts): bins,
-// products, crossings and the steps' solver figures (iterations, residual:
-// steps.csv but its timing columns) to the byte.
-TEST(Kernel, EveryBuildTheCpuHasGivesTheSameBytes) {
+// Runs `args` (a scene and its options) on every build the CPU has and
+// expects their bins, products, crossings and the steps' solver figures
+// (iterations, residual, overlap: steps.csv but its timing columns) to the
+// byte.
+void expect_same_bytes(const std::string& name, const std::string& args) {
   std::map<std::string, std::string> first;
   for (const Isa isa : {Isa::Baseline, Isa::Avx2, Isa::Avx512}) {
     if (!cpu_has(isa)) continue;
-    const test::fs::path dir = test::fresh_dir(std::string("kernel_") + isa_name(isa));
-    const test::Outcome r = with_kernel(isa_name(isa), kScene + " -q -o " +
-                                                           dir.string());
+    const test::fs::path dir = test::fresh_dir(name + "_" + isa_name(isa));
+    const test::Outcome r = with_kernel(isa_name(isa), args + " -q -o " + dir.string());
     ASSERT_EQ(r.code, 0) << r.err;
     std::map<std::string, std::string> files;
     for (const char* f : {"bins.csv", "products.csv", "crossings.csv"})
@@ -42,8 +42,20 @@ TEST(Kernel, EveryBuildTheCpuHasGivesTheSameBytes) {
       for (const auto& row : steps.rows) files[column] += row[c] + "\n";
     }
     if (first.empty()) first = files;
-    for (const auto& [name, text] : files) EXPECT_EQ(text, first[name]) << isa_name(isa) << " " << name;
+    for (const auto& [file, text] : files)
+      EXPECT_EQ(text, first[file]) << isa_name(isa) << " " << file;
   }
+}
+
+// A hopper draining: APGD on up to about 2 000 contacts.
+TEST(Kernel, EveryBuildTheCpuHasGivesTheSameBytes) { expect_same_bytes("kernel", kScene); }
+
+// A pile on a yielding ramp: blocks of contacts with springs (their rows
+// N + E, CcpProblem::softness) among rigid ones.
+TEST(Kernel, EveryBuildGivesTheSameBytesWithYieldingContacts) {
+  expect_same_bytes("kernel_yield",
+                    std::string(CES_SOURCE_DIR) +
+                        "/tests/scenes/pile.yaml --set 'materials.steel.stiffness=50 N/m'");
 }
 
 TEST(Kernel, VersionNamesTheKernelInUse) {
