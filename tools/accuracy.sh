@@ -18,6 +18,8 @@
 # Needs a built ces-sim (default build/ces-sim) and python3.
 # Usage: tools/accuracy.sh [--report-only] [path/to/ces-sim]
 # (--report-only: the runs in out/accuracy as they are, the document again.)
+# A full run takes over an hour on 2 cores, most of it in the tightened
+# references.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source tools/runs.sh
