@@ -180,14 +180,14 @@ Json collectors_json(const RunRecord& r) {
       if (p.collector != int(k)) continue;
       const auto& materials = r.sim->model->materials.materials();
       const ProductShare main = p.main();
-      products.push_back({{"name", r.sim->collectors[k].products[std::size_t(p.product)].name},
-                          {"mass_kg", p.total_kg},
-                          {"main_material",
-                           p.main_material < 0 ? "" : materials[std::size_t(p.main_material)].name},
-                          {"grade", main.grade},
-                          {"recovery", main.recovery},
-                          {"grade_se", main.grade_se},
-                          {"recovery_se", main.recovery_se}});
+      products.push_back(
+          {{"name", r.sim->collectors[k].products[std::size_t(p.product)].name},
+           {"mass_kg", p.total_kg},
+           {"main_material", main.material < 0 ? "" : materials[std::size_t(main.material)].name},
+           {"grade", main.grade},
+           {"recovery", main.recovery},
+           {"grade_se", main.grade_se},
+           {"recovery_se", main.recovery_se}});
     }
     out.push_back({{"name", r.sim->collectors[k].name},
                    {"collected", tally_json(sum(t.total))},
@@ -214,13 +214,13 @@ void print_products(const RunRecord& r, std::FILE* out) {
   for (const ProductResult& p : r.products) {
     const Collector& c = r.sim->collectors[std::size_t(p.collector)];
     const std::string name = c.name + "/" + c.products[std::size_t(p.product)].name;
-    if (p.main_material < 0) {
+    const ProductShare main = p.main();
+    if (main.material < 0) {
       std::fprintf(out, "  %-24s empty\n", name.c_str());
       continue;
     }
-    const ProductShare main = p.main();
     std::fprintf(out, "  %-24s %-12s grade %.3f +- %.3f  recovery %.3f +- %.3f  %s\n", name.c_str(),
-                 materials[std::size_t(p.main_material)].name.c_str(), main.grade, main.grade_se,
+                 materials[std::size_t(main.material)].name.c_str(), main.grade, main.grade_se,
                  main.recovery, main.recovery_se, grams(p.total_kg).c_str());
   }
 }

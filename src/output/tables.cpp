@@ -22,6 +22,7 @@ Tally settled(const Collection& c, int m) {
 ProductShare share(const Collection& c, int m, const Tally& cell, double cell_squares,
                    const Tally& product, double squares) {
   ProductShare s;
+  s.material = m;
   s.count = cell.count;
   s.kg = cell.kg();
   if (cell.mass == 0) return s;
@@ -44,19 +45,18 @@ ProductResult product_result(const Collection& c, int collector, int product,
   Tally total;
   MassUnits main = 0;
   double squares = 0.0;
-  for (const int m : materials) {
-    const Tally& cell = t.products[base + std::size_t(m)];
+  for (std::size_t i = 0; i < materials.size(); ++i) {
+    const Tally& cell = t.products[base + std::size_t(materials[i])];
     total += cell;
-    squares += t.product_squares[base + std::size_t(m)];
+    squares += t.product_squares[base + std::size_t(materials[i])];
     if (cell.mass > main) {  // ties keep the first (lower index) material
       main = cell.mass;
-      r.main_material = m;
+      r.main_share = int(i);
     }
   }
   r.total_kg = total.kg();
   for (const int m : materials) {
     const std::size_t at = base + std::size_t(m);
-    if (m == r.main_material) r.main_share = int(r.shares.size());
     r.shares.push_back(share(c, m, t.products[at], t.product_squares[at], total, squares));
   }
   return r;

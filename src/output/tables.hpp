@@ -44,6 +44,7 @@ double ratio_standard_error(double part, double whole, double q_part, double q_w
 
 // One material in one product.
 struct ProductShare {
+  int material = -1;  // its Model index
   std::uint64_t count = 0;
   double kg = 0.0;
   double grade = 0.0;     // its mass / the product's (0 when the product is empty)
@@ -56,9 +57,8 @@ struct ProductResult {
   int product = 0;
   std::vector<ProductShare> shares;  // per reported material
   double total_kg = 0.0;
-  int main_material = -1;  // Model index of the largest mass; -1 for an empty product
-  int main_share = -1;     // its index in shares
-  // The main material's share; all zeros for an empty product.
+  int main_share = -1;  // the share of the largest mass; -1 for an empty product
+  // The main material's share; all zeros (material -1) for an empty product.
   ProductShare main() const {
     return main_share < 0 ? ProductShare{} : shares[std::size_t(main_share)];
   }
