@@ -144,9 +144,9 @@ void compare_tables(const std::filesystem::path& dir_a, const char* file, const 
 }
 
 // bins.csv or products.csv: every cell but those naming its row a number.
-Table read_tally_table(const std::filesystem::path& file, std::string_view header,
-                       std::string_view older_header = {}) {
-  Table t = read_table(file, header, older_header);
+Table read_tally_table(const std::filesystem::path& file,
+                       std::initializer_list<std::string_view> accepted_headers) {
+  Table t = read_table(file, accepted_headers);
   const std::vector<std::size_t> keys = key_columns(t);
   for (std::size_t i = 0; i < t.rows.size(); ++i)
     for (std::size_t c = 0; c < t.header.size(); ++c)
@@ -192,17 +192,20 @@ std::size_t Table::column(const std::string& name, const std::filesystem::path& 
   return std::size_t(it - header.begin());
 }
 
-Table read_table(const std::filesystem::path& file, std::string_view expected_header,
-                 std::string_view older_header) {
+Table read_table(const std::filesystem::path& file,
+                 std::initializer_list<std::string_view> accepted_headers) {
   std::ifstream in = open_table(file);
   Table t;
   std::string line;
   if (!std::getline(in, line)) throw IoError(file.string() + ": empty file");
   t.header = split(csv::without_bom(line));
-  const bool older = !older_header.empty() && t.header == split(older_header);
-  if (!expected_header.empty() && t.header != split(expected_header) && !older)
-    throw IoError(file.string() + ":1: expected the header " + std::string(expected_header) +
-                  ", found '" + std::string(csv::trim(csv::without_bom(line))) + "'");
+  const bool accepted = accepted_headers.size() == 0 ||
+                        std::any_of(accepted_headers.begin(), accepted_headers.end(),
+                                    [&](std::string_view h) { return t.header == split(h); });
+  if (!accepted)
+    throw IoError(file.string() + ":1: expected the header " +
+                  std::string(*accepted_headers.begin()) + ", found '" +
+                  std::string(csv::trim(csv::without_bom(line))) + "'");
   for (int n = 2; std::getline(in, line); ++n) {
     if (csv::trim(line).empty()) continue;
     t.rows.push_back(split(line));
@@ -215,7 +218,7 @@ Table read_table(const std::filesystem::path& file, std::string_view expected_he
 }
 
 Landings read_landings(const std::filesystem::path& file) {
-  const Table t = read_table(file, kCrossingsHeader);
+  const Table t = read_table(file, {kCrossingsHeader});
   const std::size_t along = t.column("along_m", file), mass = t.column("mass_kg", file),
                     material = t.column("material", file), collector = t.column("collector", file);
   Landings out;
@@ -252,10 +255,10 @@ double wasserstein1(std::vector<std::pair<double, double>> a,
 CompareResult compare_outputs(const std::filesystem::path& a, const std::filesystem::path& b,
                               const CompareOptions& options) {
   CompareResult r;
-  compare_tables(a, "bins.csv", read_tally_table(a / "bins.csv", kBinsHeader),
-                 read_tally_table(b / "bins.csv", kBinsHeader), options, r);
+  compare_tables(a, "bins.csv", read_tally_table(a / "bins.csv", {kBinsHeader}),
+                 read_tally_table(b / "bins.csv", {kBinsHeader}), options, r);
   const auto products = [](const std::filesystem::path& dir) {
-    return read_tally_table(dir / "products.csv", kProductsHeader, kProductsHeaderWithoutErrors);
+    return read_tally_table(dir / "products.csv", {kProductsHeader, kProductsHeaderWithoutErrors});
   };
   compare_tables(a, "products.csv", products(a), products(b), options, r);
   compare_landings(read_landings(a / "crossings.csv"), read_landings(b / "crossings.csv"), options, r);

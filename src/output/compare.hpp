@@ -14,6 +14,7 @@
 #pragma once
 #include <cstdint>
 #include <filesystem>
+#include <initializer_list>
 #include <map>
 #include <string>
 #include <string_view>
@@ -35,9 +36,9 @@ struct CompareResult {
 };
 
 // A CSV table as written by output/tables (no quoting). Throws IoError when
-// the file is missing, empty or ragged, lacks the expected header (when one
-// is given; or the older one, when that is given too) or a requested
-// column, or a requested number.
+// the file is missing, empty or ragged, has none of the accepted headers
+// (when any are given; the error names the first, today's), or lacks a
+// requested column or number.
 struct Table {
   std::vector<std::string> header;
   std::vector<std::vector<std::string>> rows;
@@ -45,8 +46,8 @@ struct Table {
   std::size_t column(const std::string& name, const std::filesystem::path& file) const;
   double number(std::size_t row, std::size_t column, const std::filesystem::path& file) const;
 };
-Table read_table(const std::filesystem::path& file, std::string_view expected_header = {},
-                 std::string_view older_header = {});
+Table read_table(const std::filesystem::path& file,
+                 std::initializer_list<std::string_view> accepted_headers = {});
 
 // Landing positions along the collector axis and masses, per
 // "material at collector", from a crossings.csv.
