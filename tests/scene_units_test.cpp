@@ -165,7 +165,7 @@ TEST(SceneSchema, MinimalSceneGetsDefaults) {
   EXPECT_EQ(sim.seed, 0u);
   EXPECT_EQ(sim.model->solver.method, SolverMethod::APGD);
   // The accuracy a scene without a solver section gets, not a fixed count.
-  EXPECT_DOUBLE_EQ(sim.model->solver.tolerance, 1e-3);
+  EXPECT_DOUBLE_EQ(sim.model->solver.tolerance, 3e-4);
   EXPECT_DOUBLE_EQ(sim.model->solver.penetration_tolerance, 0.1);
   EXPECT_EQ(sim.model->solver.max_iterations, 200);
   EXPECT_DOUBLE_EQ(sim.model->contact.envelope_fraction, 0.25);

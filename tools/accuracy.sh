@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates docs/accuracy_defaults.md: runs scenes/ces_pcb.yaml at its
 # own settings and a reference of it converged in its solve (half the
-# step, a hundredth of its residual tolerance, a fifth of its penetration
+# step, a thirtieth of its residual tolerance, a fifth of its penetration
 # tolerance) at several seeds, and writes the error of the products and
 # of the landing distributions against the reference, with the cost of
 # each run and the overlaps each left. A seed feeds the same particles at
@@ -10,9 +10,9 @@
 # sampling of the feed. Four more sections split that error: the defaults
 # against their own step's converged solve (the reference's tolerances at
 # the defaults' step: the solve's share), that converged solve against the
-# reference (the step's share), a residual tolerance of 0.3 mm/s at the
-# defaults' step against the converged solve (what a tighter tolerance
-# buys), and the reference against its solve tightened again (half its
+# reference (the step's share), a residual tolerance of 1 mm/s at the
+# defaults' step against the converged solve (what the defaults' tighter
+# 0.3 mm/s buys), and the reference against its solve tightened again (half its
 # tolerances, twice its iteration cap: how far the reference itself is
 # from converged in its solve).
 # Needs a built ces-sim (default build/ces-sim) and python3.
@@ -28,7 +28,7 @@ doc=docs/accuracy_defaults.md
 seeds=(1 2 3)
 solve=(--set solver.tolerance=1e-5 --set solver.penetration_tolerance=0.02
        --set solver.max_iterations=400)
-tolerance=(--set solver.tolerance=3e-4)
+loose=(--set solver.tolerance=1e-3)
 tight=(--set time.step=0.125ms --set solver.tolerance=5e-6 --set solver.penetration_tolerance=0.01
        --set solver.max_iterations=800)
 mkdir -p "$out"
@@ -38,7 +38,7 @@ if ! $report_only; then
     run "$out" "defaults_$seed" scenes/ces_pcb.yaml --seed "$seed"
     run "$out" "reference_$seed" scenes/ces_pcb.yaml --seed "$seed" "${reference[@]}"
     run "$out" "solve_$seed" scenes/ces_pcb.yaml --seed "$seed" "${solve[@]}"
-    run "$out" "tolerance_$seed" scenes/ces_pcb.yaml --seed "$seed" "${tolerance[@]}"
+    run "$out" "loose_$seed" scenes/ces_pcb.yaml --seed "$seed" "${loose[@]}"
     run "$out" "tight_$seed" scenes/ces_pcb.yaml --seed "$seed" "${tight[@]}"
   done
 fi
@@ -56,11 +56,11 @@ python3 tools/accuracy_report.py --section solve "A converged solve at the defau
 the step makes." \
   "$out" "$doc" "${reference[*]}" "${seeds[@]}"
 echo >> "$doc"
-python3 tools/accuracy_report.py --section tolerance "A tighter residual tolerance at the defaults' step" \
-  "The defaults with a residual tolerance of 0.3 mm/s instead of 1 (\`${tolerance[*]}\`) \
-against the converged solve at the same step: what the tighter tolerance leaves of the \
-solve's share, and its cost. The reference in this section is the converged solve." \
-  --against solve "$out" "$doc" "${tolerance[*]}" "${seeds[@]}"
+python3 tools/accuracy_report.py --section loose "A looser residual tolerance at the defaults' step" \
+  "The defaults with a residual tolerance of 1 mm/s instead of 0.3 (\`${loose[*]}\`) \
+against the converged solve at the same step: the error the defaults' tighter tolerance \
+takes away, and what it saves. The reference in this section is the converged solve." \
+  --against solve "$out" "$doc" "${loose[*]}" "${seeds[@]}"
 echo >> "$doc"
 python3 tools/accuracy_report.py --section tight "The reference against a tighter solve of itself" \
   "The reference again with its solve tightened at the same step (\`${tight[*]}\`), \

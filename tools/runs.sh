@@ -21,7 +21,7 @@ run() {
 
 # The converged reference of tools/accuracy.sh, against which
 # tools/accuracy_industrial.sh measures too: half the reference scene's
-# 0.25 ms step, a hundredth of its residual tolerance (1 mm/s) and a fifth
+# 0.25 ms step, a thirtieth of its residual tolerance (0.3 mm/s) and a fifth
 # of its penetration tolerance (0.1).
 reference=(--set time.step=0.125ms --set solver.tolerance=1e-5 --set solver.penetration_tolerance=0.02
            --set solver.max_iterations=400)

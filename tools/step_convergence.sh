@@ -5,7 +5,8 @@
 # same particles fed sparsely (2 g/s for 10 s, so that they land one by
 # one and barely touch each other), with and without the electrostatics,
 # and with them and the solve converged (a residual tolerance of 1e-5 m/s,
-# a hundredth of the default, and up to 400 iterations), at 0.25, 0.125 and 0.0625 ms; and writes
+# a thirtieth of the default, and up to 400 iterations), at 0.25, 0.125
+# and 0.0625 ms; and writes
 # their products against the finest step of each series, particle by
 # particle.
 # Needs a built ces-sim (default build/ces-sim) and python3.

@@ -60,7 +60,7 @@ lines = [
     "seed 1, at steps from its 0.25 ms down to 0.03125 ms; then the same",
     "particles fed sparsely (2 g/s for 10 s instead of 20 g/s for 1 s, so that",
     "they land one by one), with the electrostatics (at the default residual",
-    "tolerance, 1 mm/s, and again with the solve converged to 0.01 mm/s) and",
+    "tolerance, 0.3 mm/s, and again with the solve converged to 0.01 mm/s) and",
     "without them. Every",
     "run feeds the same particles, so each is compared particle by particle",
     "with the finest step of its series. What this shows and why:",

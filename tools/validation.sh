@@ -116,6 +116,8 @@ cpu=$(grep -m1 '^model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//')
 verdict() { awk -v v="$1" -v t="$2" -v s="$3" 'BEGIN { ok = s == ">=" ? v >= t : v <= t; print ok ? "met" : "**not met**" }'; }
 balance_ok=$([ "$exact" = true ] && [ "$(balance active)" = 0 ] && echo met || echo "**not met**")
 time_ok=$(verdict "$wall" 180 "<=")
+# What the middling is, in words, from FR-4's share of its mass.
+middling_is=$(awk -v f="$mid_fr4" 'BEGIN { print (f >= 99.95 ? "FR-4" : f >= 50 ? "mostly FR-4" : "mostly metal") }')
 
 cat > "$doc" <<EOF
 # Validation
@@ -166,13 +168,13 @@ FR-4 makes $mid_fr4 % of the middling's mass.
 | figure | published | model | |
 |---|---|---|---|
 | metal content of the feed | about 28 % of PCB scrap (Li, Xu & Zhou 2007) | copper $cu_share % of the fed mass | the scene feeds 28 % by mass; the share fed differs by the sampling of whole flakes |
-| conductive product, share of the feed | 24.0 g of 120 g = 20.0 % (Wu, Qin, Zhou & Xu 2009) | $cond_share % | the model's conductor product holds all the copper; if Wu's samples held 25–28 % metal, their conductive product held at most 71–80 % of it |
+| conductive product, share of the feed | 24.0 g of 120 g = 20.0 % (Wu, Qin, Zhou & Xu 2009) | $cond_share % | the model's conductor product holds $recovery % of the copper; if Wu's samples held 25–28 % metal, their conductive product held at most 71–80 % of it |
 | middling, share of the feed | 1.4 g of 120 g = 1.2 % (Wu, Qin, Zhou & Xu 2009) | $middling % | see below |
-| metal share of the middling | 58–66 % on one-roll machines (Wu, Li & Xu 2008) | $(awk -v f="$mid_fr4" 'BEGIN { printf "%.1f", 100 - f }') % | the model's middling is FR-4 |
+| metal share of the middling | 58–66 % on one-roll machines (Wu, Li & Xu 2008) | $(awk -v f="$mid_fr4" 'BEGIN { printf "%.1f", 100 - f }') % | the model's middling is $middling_is |
 
 ## Why the model misses what it misses
 
-The model's middling is FR-4: flakes whose image pull at saturation
+The model's middling is $middling_is: flakes whose image pull at saturation
 cannot hold them against their weight and the centrifugal force once the
 roll carries them past its side. Their saturation charge grows as a³/t
 (docs/physics.md §5.3) and their weight as a² t, so the thick flakes of
@@ -188,8 +190,9 @@ The published middlings are mostly metal (Wu, Li & Xu 2008): partly
 liberated particles and fine metal, which the model's feed does not have
 (every flake is all copper or all FR-4, none finer than the measured
 1.7 mm). The model also has no aggregation of fines (the non-conductive
-powder effect of Wu, Qin, Zhou & Xu 2009) and no bristle brush (a rigid
-roller sweeps the roll). The published runs give no roll diameter, speed,
+powder effect of Wu, Qin, Zhou & Xu 2009), and its brush is a roller
+whose surface yields as bristles bend (docs/physics.md §5.7), not bristles
+that reach between the flakes. The published runs give no roll diameter, speed,
 voltage or electrode positions, so they compare as shares of the feed.
 
 ## Sweeps against published trends
@@ -202,7 +205,7 @@ speed, voltage and particle size run
 (about 40 copper and 430 FR-4 flakes, so an FR-4 recovery carries about 2
 points of sampling noise and a copper recovery up to 8 where the copper
 splits), to a fixed end of 3 s; a particle still on the drum then (one
-cycling under the brush's nip, which a rigid roller cannot sweep) counts
+cycling under the brush's nip, which a roller cannot sweep) counts
 as held, in no product. The separation efficiency E is the copper
 recovered into the conductor product plus the FR-4 recovered into the
 non-conductor product, less 100 % (Newton's efficiency, with the middling
