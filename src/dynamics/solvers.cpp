@@ -75,6 +75,87 @@ double initial_lipschitz(const CcpProblem& p, Span u, Span Nu) {
   return std::max(std::sqrt(dot(Nu, Nu) / double(u.size())), 1e-12);
 }
 
+// The five iterates and three gradients of solve_apgd, by role: x, the
+// one before it (x_old), the best so far (kept where it lies instead of
+// copied; it may be x or x_old), the trial x1 and the next trial, made
+// ahead in x1's gradient pass on the guess that x1 is accepted. A trial
+// goes where it overwrites none of the others (a backtracking step makes
+// x1 again from x and x_old). Accepting x1 passes the roles round instead
+// of copying.
+class ApgdIterates {
+ public:
+  ApgdIterates(SolverWorkspace::Apgd& buffers, std::size_t m) {
+    for (std::size_t i = 0; i < xs_.size(); ++i) xs_[i] = buffers.iterates[i].take(m);
+    for (std::size_t i = 0; i < gs_.size(); ++i) gs_[i] = buffers.gradients[i].take(m);
+  }
+  Span x() const { return xs_[ix_]; }
+  Span x_old() const { return xs_[iold_]; }
+  Span best() const { return xs_[ibest_]; }
+  Span trial() const { return xs_[i1_]; }
+  Span next() const { return xs_[inext_]; }
+  Span g() const { return gs_[gx_]; }
+  Span g_old() const { return gs_[gold_]; }
+  Span g_trial() const { return gs_[g1_]; }
+
+  void trial_is_best() { ibest_ = i1_; }
+  // Where the next trial goes: the slot no other role holds.
+  void place_next() {
+    inext_ = 0;
+    while (inext_ == ix_ || inext_ == iold_ || inext_ == ibest_ || inext_ == i1_) ++inext_;
+  }
+  // x1 becomes x, x becomes x_old, and the next trial, already made, x1.
+  void accept() {
+    iold_ = std::exchange(ix_, std::exchange(i1_, inext_));
+    gold_ = std::exchange(gx_, std::exchange(g1_, gold_));
+  }
+
+ private:
+  std::array<Span, 5> xs_;
+  std::array<Span, 3> gs_;
+  std::size_t ix_ = 0, iold_ = 1, ibest_ = 2, i1_ = 3, inext_ = 4;
+  std::size_t gx_ = 0, gold_ = 1, g1_ = 2;
+};
+
+// What carries from one APGD iteration to the next: the Lipschitz
+// estimate, theta, the momentum (y = ca x - cb x_old; at the start and
+// after a restart y = x) and the current trial's sums.
+struct ApgdState {
+  double L = 0.0;
+  double theta = 1.0;
+  CcpProblem::Momentum momentum;
+  CcpProblem::TrialSums t;
+};
+
+// The next iteration's theta, momentum and trial sums, if x1 is accepted.
+struct ApgdNext {
+  double theta = 1.0;
+  CcpProblem::Momentum momentum;
+  CcpProblem::TrialSums t;
+};
+
+// x1's gradient pass (making the next trial with it unless `last`),
+// doubling L and making x1 again until the sufficient-decrease test holds
+// or L passes L_cap. A backtracking step changes t.uphill and L, so the
+// next iteration's theta and momentum are made again with them.
+ApgdNext gradient_pass(const CcpProblem& p, const ApgdIterates& v, ApgdState& st, double L_cap,
+                       bool last) {
+  ApgdNext next;
+  for (;;) {
+    const double theta = st.theta;
+    const double theta1 = 0.5 * (-theta * theta + theta * std::sqrt(theta * theta + 4.0));
+    const double beta = theta * (1.0 - theta) / (theta * theta + theta1);
+    const bool restart = st.t.uphill > 0.0;  // momentum points uphill
+    next.theta = restart ? 1.0 : theta1;
+    next.momentum = restart ? CcpProblem::Momentum{} : CcpProblem::Momentum{1.0 + beta, beta};
+    CcpProblem::NextTrial trial;
+    if (!last) trial = {v.next(), v.g(), next.momentum, 1.0 / (st.L * 0.9)};
+    next.t = p.apgd_gradient(v.trial(), v.g_trial(), v.x(), v.x_old(), st.momentum, st.t, trial);
+    if (st.t.dnd <= st.L * st.t.dd * (1.0 + 1e-10) || st.L > L_cap) return next;
+    st.L *= 2.0;
+    st.t = p.apgd_step(v.x(), v.x_old(), v.trial(), v.g(), v.g_old(), st.momentum, 1.0 / st.L);
+  }
+}
+
 }  // namespace
 
 // Accelerated projected gradient descent with adaptive step, backtracking and
@@ -102,72 +183,39 @@ double initial_lipschitz(const CcpProblem& p, Span u, Span Nu) {
 SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, SolverWorkspace& ws) {
   const std::size_t m = p.row_count();
   if (m == 0) return {0, 0.0, true};
-  // Five iterates: x, the one before it (x_old), the best so far (kept
-  // where it lies instead of copied; it may be x or x_old), the trial x1
-  // and the next trial, made ahead in x1's gradient pass on the guess that
-  // x1 is accepted. A trial goes where it overwrites none of the others (a
-  // backtracking step makes x1 again from x and x_old). Three gradients:
-  // gx, g_old and x1's.
-  std::array<Span, 5> xs;
-  std::array<Span, 3> gs;
-  for (std::size_t i = 0; i < xs.size(); ++i) xs[i] = ws.apgd.iterates[i].take(m);
-  for (std::size_t i = 0; i < gs.size(); ++i) gs[i] = ws.apgd.gradients[i].take(m);
-  std::size_t ix = 0, iold = 1, ibest = 2, i1 = 3, gx = 0, gold = 1, g1 = 2;
-  p.to_world(out, xs[ix]);
-  p.world_gradient(xs[ix], gs[gx]);
-  copy(xs[ix], xs[ibest]);  // the best until an iterate improves on it
-  double L = initial_lipschitz(p, xs[i1], gs[g1]);
+  ApgdIterates v(ws.apgd, m);
+  p.to_world(out, v.x());
+  p.world_gradient(v.x(), v.g());
+  copy(v.x(), v.best());  // the best until an iterate improves on it
+  ApgdState st;
+  st.L = initial_lipschitz(p, v.trial(), v.g_trial());
   const double L_cap = 1e3 * double(m);
-  double theta = 1.0;
+  st.t = p.apgd_step(v.x(), v.x_old(), v.trial(), v.g(), v.g_old(), st.momentum, 1.0 / st.L);
   Best record;
-  // y = ca x - cb x_old; at the start and after a restart y = x.
-  CcpProblem::Momentum momentum;
-  CcpProblem::TrialSums t = p.apgd_step(xs[ix], xs[iold], xs[i1], gs[gx], gs[gold], momentum, 1.0 / L);
   int it = 0;
   for (; it < s.max_iterations; ++it) {
-    // The next iteration's theta, momentum and L if x1 is accepted; a
-    // backtracking step changes t.uphill and L, so they are made again.
-    double theta_next = 1.0;
-    CcpProblem::Momentum momentum_next;
-    std::size_t i2 = 0;
-    while (i2 == ix || i2 == iold || i2 == ibest || i2 == i1) ++i2;
-    CcpProblem::TrialSums t_next;
-    for (;;) {
-      const double theta1 = 0.5 * (-theta * theta + theta * std::sqrt(theta * theta + 4.0));
-      const double beta = theta * (1.0 - theta) / (theta * theta + theta1);
-      const bool restart = t.uphill > 0.0;  // momentum points uphill
-      theta_next = restart ? 1.0 : theta1;
-      momentum_next = restart ? CcpProblem::Momentum{} : CcpProblem::Momentum{1.0 + beta, beta};
-      CcpProblem::NextTrial next;
-      if (it + 1 < s.max_iterations) next = {xs[i2], gs[gx], momentum_next, 1.0 / (L * 0.9)};
-      t_next = p.apgd_gradient(xs[i1], gs[g1], xs[ix], xs[iold], momentum, t, next);
-      if (t.dnd <= L * t.dd * (1.0 + 1e-10) || L > L_cap) break;
-      L *= 2.0;
-      t = p.apgd_step(xs[ix], xs[iold], xs[i1], gs[gx], gs[gold], momentum, 1.0 / L);
-    }
-    const double rms = std::sqrt(t.res_sum / double(m));
-    if (accurate(p, s, rms, gs[g1], true)) {
+    v.place_next();
+    const ApgdNext next = gradient_pass(p, v, st, L_cap, it + 1 == s.max_iterations);
+    const double rms = std::sqrt(st.t.res_sum / double(m));
+    if (accurate(p, s, rms, v.g_trial(), true)) {
       record.take(rms);
       record.stats.converged = true;
       record.stats.iterations = it + 1;
-      p.to_local(xs[i1], out);
+      p.to_local(v.trial(), out);
       return record.stats;
     }
     if (record.improves(rms)) {
       record.take(rms);
-      ibest = i1;
+      v.trial_is_best();
     }
-    theta = theta_next;
-    momentum = momentum_next;
-    // The trial is accepted: it becomes x, x becomes x_old, and the next
-    // trial, already made, is x1.
-    iold = std::exchange(ix, std::exchange(i1, i2));
-    gold = std::exchange(gx, std::exchange(g1, gold));
-    L *= 0.9;
-    t = t_next;
+    v.accept();
+    st.theta = next.theta;
+    st.momentum = next.momentum;
+    st.L *= 0.9;
+    st.t = next.t;
   }
   record.stats.iterations = it;
-  p.to_local(xs[ibest], out);
+  p.to_local(v.best(), out);
   return record.stats;
 }
 
