@@ -284,13 +284,65 @@ bool on_face(const Candidate& c) {
   return c.key.feature_a == kPlateFeature || c.key.feature_b == kPlateFeature;
 }
 
+// A pair's candidates in groups of nearly parallel normals, each group's
+// in candidate order. A candidate joins the first group (in the order they
+// were opened) whose first member's normal is close to its own, or opens
+// one. Most join the first: a flake on the drum makes one group, a pair of
+// flakes two or three. A plate's face (contact.flake_faces flat) makes a
+// group of its own: its rows have gaps affine over it, so its corners hold
+// it, which a rim's row with a normal near the face's would not.
+class NormalGroups {
+ public:
+  void make(const std::vector<Candidate>& c) {
+    constexpr double kSameNormal = 0.95;  // cos 18°
+    const std::size_t n = c.size();
+    group_.resize(n);
+    leader_.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3& ni = c[i].normal;
+      const bool face = on_face(c[i]);
+      std::size_t g = 0;
+      while (g < leader_.size() &&
+             (on_face(c[leader_[g]]) != face || ni.dot(c[leader_[g]].normal) <= kSameNormal))
+        ++g;
+      if (g == leader_.size()) leader_.push_back(i);
+      group_[i] = g;
+    }
+    order_by_group();
+  }
+  std::size_t count() const { return leader_.size(); }
+  std::span<const std::size_t> members(std::size_t g) const {
+    return {by_group_.data() + start_[g], start_[g + 1] - start_[g]};
+  }
+
+ private:
+  // A counting sort, where scanning every candidate for each group costs
+  // as much as the grouping. One group (most pairs) is the candidates as
+  // they are.
+  void order_by_group() {
+    const std::size_t n = group_.size(), groups = count();
+    by_group_.resize(n);
+    start_.assign(groups + 1, 0);
+    if (groups == 1) {
+      for (std::size_t i = 0; i < n; ++i) by_group_[i] = i;
+      start_[1] = n;
+      return;
+    }
+    for (std::size_t i = 0; i < n; ++i) ++start_[group_[i] + 1];
+    for (std::size_t g = 0; g < groups; ++g) start_[g + 1] += start_[g];
+    fill_.assign(start_.begin(), start_.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) by_group_[fill_[group_[i]]++] = i;
+  }
+
+  std::vector<std::size_t> group_, leader_, by_group_, start_, fill_;
+};
+
 }  // namespace
 
 void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
                      std::uint32_t surfaces, const PairMotion& motion, Reduction rule,
                      Contacts& out) {
   constexpr std::size_t kKeep = 5;
-  constexpr double kSameNormal = 0.95;  // cos 18°
   const std::size_t n = c.size();
   auto push = [&](const Candidate& k) {
     out.push(body_a, body_b, k.normal, k.point, k.gap, k.radius, surfaces, k.key);
@@ -299,45 +351,12 @@ void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
     for (const Candidate& k : c) push(k);
     return;
   }
-  static thread_local std::vector<int> group;
+  static thread_local NormalGroups groups;
   static thread_local std::vector<std::uint8_t> keep;
-  static thread_local std::vector<std::size_t> by_group, start, fill, leader;
-  group.resize(n);
+  groups.make(c);
   keep.assign(n, 0);
-  // A candidate joins the first group (in the order they were opened) whose
-  // first member's normal is close to its own, or opens one. Most join the
-  // first: a flake on the drum makes one group, a pair of flakes two or three.
-  // A plate's face (contact.flake_faces flat) makes a group of its own: its
-  // rows have gaps affine over it, so its corners hold it, which a rim's
-  // row with a normal near the face's would not.
-  leader.clear();
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec3& ni = c[i].normal;
-    const bool face = on_face(c[i]);
-    std::size_t g = 0;
-    while (g < leader.size() &&
-           (on_face(c[leader[g]]) != face || ni.dot(c[leader[g]].normal) <= kSameNormal))
-      ++g;
-    if (g == leader.size()) leader.push_back(i);
-    group[i] = int(g);
-  }
-  // The contacts by group, each group's in contact order (a counting sort),
-  // where scanning every contact for each group costs as much as the
-  // grouping. One group (most pairs) is the contacts as they are.
-  const std::size_t groups = leader.size();
-  by_group.resize(n);
-  start.assign(groups + 1, 0);
-  if (groups == 1) {
-    for (std::size_t i = 0; i < n; ++i) by_group[i] = i;
-    start[1] = n;
-  } else {
-    for (std::size_t i = 0; i < n; ++i) ++start[std::size_t(group[i]) + 1];
-    for (std::size_t g = 0; g < groups; ++g) start[g + 1] += start[g];
-    fill.assign(start.begin(), start.end() - 1);
-    for (std::size_t i = 0; i < n; ++i) by_group[fill[std::size_t(group[i])]++] = i;
-  }
-  for (std::size_t g = 0; g < groups; ++g) {
-    const std::span<const std::size_t> members(by_group.data() + start[g], start[g + 1] - start[g]);
+  for (std::size_t g = 0; g < groups.count(); ++g) {
+    const std::span<const std::size_t> members = groups.members(g);
     if (members.size() <= kKeep) {
       for (std::size_t k : members) keep[k] = 1;
       continue;
