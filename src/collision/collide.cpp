@@ -442,10 +442,20 @@ void Collider::speed_changes(const Model& model, const Particles& p) {
 void Collider::narrowphase(const Model& model, const Particles& p, const Bodies& bodies,
                            Contacts& out) {
   used_ = 0;  // out is cut to this at the end; see run_chunked
+  place_spheres(model, p);
+  speed_changes(model, p);
+  particle_pairs(model, p, out);
+  widen_by_kicks(model, p, out);
+  for (std::size_t b = 0; b < model.bodies.size(); ++b)
+    body_contacts(model, p, bodies, int(b), out);
+  out.resize(used_);
+}
+
+// World centres of every particle's spheres, once per step: the pair loop
+// visits each of them once per neighbour. And each flake's plate frame,
+// once per step, not once per neighbour.
+void Collider::place_spheres(const Model& model, const Particles& p) {
   const std::size_t n = p.size();
-  const double h = model.step;
-  // World centres of every particle's spheres, once per step: the pair loop
-  // below visits each of them once per neighbour.
   sphere_first_.resize(n + 1);
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
   for (std::size_t i = 0; i < n; ++i)
@@ -453,7 +463,6 @@ void Collider::narrowphase(const Model& model, const Particles& p, const Bodies&
   sphere_first_[n] = 0;
   exclusive_scan(sphere_first_);
   sphere_centre_.resize(sphere_first_[n]);
-  // And each flake's plate frame, once per step, not once per neighbour.
   const bool flat = model.contact.flat_faces;
   if (flat) plate_frame_.resize(n);
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
@@ -467,17 +476,19 @@ void Collider::narrowphase(const Model& model, const Particles& p, const Bodies&
     if (flat && shape.face.flat())
       plate_frame_[i] = plate_frame(shape.face, turn, p.position[i], p.scale[i]);
   }
-  speed_changes(model, p);
-  particle_pairs(model, p, out);
-  // A particle can also be struck this step by a neighbour and leave faster
-  // than it came: a light grain hit by a heavy one in a 10 m/s stream can
-  // go through a plate it had no contact with. An impact with a particle of
-  // mass m_j changes its velocity by at most (1 + e) m_j / (m_i + m_j) of
-  // their relative speed, so against bodies its envelope grows by that
-  // speed times h, for each pair that is a contact this step. (Chains can
-  // pass on more; the wall guard, dynamics/safeguards.cpp, covers the
-  // contacts found.)
-  // In parallel: a maximum is the same in any order.
+}
+
+// A particle can also be struck this step by a neighbour and leave faster
+// than it came: a light grain hit by a heavy one in a 10 m/s stream can go
+// through a plate it had no contact with. An impact with a particle of mass
+// m_j changes its velocity by at most (1 + e) m_j / (m_i + m_j) of their
+// relative speed, so against bodies its envelope grows by that speed times
+// h, for each pair that is a contact this step (the first used_ of out).
+// (Chains can pass on more; the wall guard, dynamics/safeguards.cpp, covers
+// the contacts found.) In parallel: a maximum is the same in any order.
+void Collider::widen_by_kicks(const Model& model, const Particles& p, const Contacts& out) {
+  const std::size_t n = p.size();
+  const double h = model.step;
   kick_.assign(n, 0.0);
   const auto particle_contacts = std::ptrdiff_t(used_);
 #pragma omp parallel for schedule(static) if (particle_contacts > kParallelMin)
@@ -495,8 +506,6 @@ void Collider::narrowphase(const Model& model, const Particles& p, const Bodies&
     envelope_[std::size_t(i)] += kick_[std::size_t(i)];
     reach_[std::size_t(i)] += kick_[std::size_t(i)];
   }
-  for (std::size_t b = 0; b < model.bodies.size(); ++b) body_contacts(model, p, bodies, int(b), out);
-  out.resize(used_);
 }
 
 void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& out) {

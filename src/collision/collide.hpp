@@ -39,8 +39,10 @@ class Collider {
  private:
   void struck_by_body(const Model& model, const Particles& p, const Bodies& bodies, int body);
   void struck_by_neighbours(const Model& model, const Particles& p);
+  void place_spheres(const Model& model, const Particles& p);
   void speed_changes(const Model& model, const Particles& p);
   void particle_pairs(const Model& model, const Particles& p, Contacts& out);
+  void widen_by_kicks(const Model& model, const Particles& p, const Contacts& out);
   // The candidate contacts of particles i and j (by id, i first): sphere
   // on sphere, or a sphere on a flake's plate where the scene asks for it.
   void pair_candidates(const Model& model, const Particles& p, std::size_t i, std::size_t j,
