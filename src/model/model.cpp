@@ -6,6 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <tuple>
+#include <utility>
 
 #include "common/hull.hpp"
 
@@ -195,36 +196,30 @@ struct Corner {
   std::uint32_t sphere;
 };
 
-// The plate of spheres of one radius centred in one plane (a centre off
-// it by more than rounding, or two radii, and the shape is not flat). The
-// plane is fitted to the centres, not taken from the principal axes: those
-// of overlapping spheres come from a numerical integration. Points on an
-// edge of the hull are not its corners.
-FlatFace flat_face(const ParticleShape& s) {
-  FlatFace face;
-  if (s.centers.size() < 3) return face;
-  for (double r : s.radii)
-    if (std::abs(r - s.radii[0]) > 1e-12 * s.radii[0]) return face;
+// The plane fitted to a shape's centres: through their mean, its normal
+// the direction they spread least in, its x axis the one they spread most.
+struct CentrePlane {
+  Vec3 origin, normal, x_axis, y_axis;
+};
+
+CentrePlane fit_plane(const std::vector<Vec3>& centers) {
   Vec3 origin = Vec3::Zero();
-  for (const Vec3& c : s.centers) origin += c;
-  origin /= double(s.centers.size());
+  for (const Vec3& c : centers) origin += c;
+  origin /= double(centers.size());
   Mat3 spread = Mat3::Zero();
-  for (const Vec3& c : s.centers) spread += (c - origin) * (c - origin).transpose();
+  for (const Vec3& c : centers) spread += (c - origin) * (c - origin).transpose();
   const Eigen::SelfAdjointEigenSolver<Mat3> eig(spread);
   const Vec3 normal = eig.eigenvectors().col(0), x_axis = eig.eigenvectors().col(2);
-  const Vec3 y_axis = normal.cross(x_axis);
-  const double thin = 1e-9 * s.bounding_radius;
-  std::vector<Corner> points;
-  for (std::size_t k = 0; k < s.centers.size(); ++k) {
-    const Vec3 d = s.centers[k] - origin;
-    if (std::abs(d.dot(normal)) > thin) return face;
-    points.push_back({d.dot(x_axis), d.dot(y_axis), std::uint32_t(k)});
-  }
+  return {origin, normal, x_axis, normal.cross(x_axis)};
+}
+
+// The hull of points (a plane's centres), counter-clockwise, into
+// face.hull and face.corners. Points on an edge are not its corners.
+void add_hull(std::vector<Corner> points, double least_turn, FlatFace& face) {
   std::sort(points.begin(), points.end(), [](const Corner& a, const Corner& b) {
     return std::tie(a.x, a.y, a.sphere) < std::tie(b.x, b.y, b.sphere);
   });
   std::vector<Corner> chain(2 * points.size());
-  const double least_turn = thin * s.bounding_radius;
   const std::size_t top = monotone_chain(
       points.data(), points.size(), chain.data(), [&](const Corner& o, const Corner& a,
                                                       const Corner& b) {
@@ -238,12 +233,13 @@ FlatFace flat_face(const ParticleShape& s) {
     face.hull.push_back({chain[i].x, chain[i].y});
     face.corners.push_back(chain[i].sphere);
   }
-  if (face.hull.size() < 3) return FlatFace{};  // centres in a line: a rod, not a plate
-  face.at_corner.assign(s.centers.size(), 0);
-  for (std::uint32_t k : face.corners) face.at_corner[k] = 1;
-  // The farthest corner, with a margin far above the billionth of an edge
-  // that covers admits past the rim, also at a corner a thousandth of a
-  // degree sharp: the early out changes no answer.
+}
+
+// The squared distance from the origin past which no point is over the
+// face: the farthest corner, with a margin far above the billionth of an
+// edge that covers admits past the rim, also at a corner a thousandth of a
+// degree sharp: the early out changes no answer.
+double beyond(const FlatFace& face) {
   double corner = 0.0, edge = 0.0;
   for (std::size_t i = 0; i < face.hull.size(); ++i) {
     const auto& a = face.hull[i];
@@ -252,11 +248,35 @@ FlatFace flat_face(const ParticleShape& s) {
     edge = std::max(edge, std::hypot(b[0] - a[0], b[1] - a[1]));
   }
   const double reach = corner + 1e-3 * (corner + edge);
-  face.beyond = reach * reach;
-  face.normal = normal;
-  face.x_axis = x_axis;
-  face.y_axis = y_axis;
-  face.origin = origin;
+  return reach * reach;
+}
+
+// The plate of spheres of one radius centred in one plane (a centre off
+// it by more than rounding, or two radii, and the shape is not flat). The
+// plane is fitted to the centres, not taken from the principal axes: those
+// of overlapping spheres come from a numerical integration.
+FlatFace flat_face(const ParticleShape& s) {
+  FlatFace face;
+  if (s.centers.size() < 3) return face;
+  for (double r : s.radii)
+    if (std::abs(r - s.radii[0]) > 1e-12 * s.radii[0]) return face;
+  const CentrePlane plane = fit_plane(s.centers);
+  const double thin = 1e-9 * s.bounding_radius;
+  std::vector<Corner> points;
+  for (std::size_t k = 0; k < s.centers.size(); ++k) {
+    const Vec3 d = s.centers[k] - plane.origin;
+    if (std::abs(d.dot(plane.normal)) > thin) return face;
+    points.push_back({d.dot(plane.x_axis), d.dot(plane.y_axis), std::uint32_t(k)});
+  }
+  add_hull(std::move(points), thin * s.bounding_radius, face);
+  if (face.hull.size() < 3) return FlatFace{};  // centres in a line: a rod, not a plate
+  face.at_corner.assign(s.centers.size(), 0);
+  for (std::uint32_t k : face.corners) face.at_corner[k] = 1;
+  face.beyond = beyond(face);
+  face.normal = plane.normal;
+  face.x_axis = plane.x_axis;
+  face.y_axis = plane.y_axis;
+  face.origin = plane.origin;
   return face;
 }
 
