@@ -348,6 +348,35 @@ int study(const Args& args, StudyArgs& study) {
   }
 }
 
+// ces-sim compare DIR_A DIR_B [--tol-...].
+CLI::App* add_compare_command(CLI::App& app, Args& args) {
+  CLI::App* cmd = app.add_subcommand("compare", "Do two output folders agree within tolerances?");
+  cmd->add_option("dir_a", args.dir_a, "Output folder A")->required();
+  cmd->add_option("dir_b", args.dir_b, "Output folder B")->required();
+  cmd->add_option("--tol-count", args.tolerances.tol_count,
+                  "Particles a bin or product may differ by (default 0)")
+      ->check(whole_number(0));
+  cmd->add_option("--tol-mass", args.tolerances.tol_mass,
+                  "Mass difference per cell as a fraction of that material's total over the "
+                  "collector's rows of the file (the larger of the two folders'); "
+                  "also the absolute tolerance on grade and recovery (default 0)")
+      ->check(number_at_least(0));
+  cmd->add_option("--tol-w1", args.tolerances.tol_w1_mm,
+                  "Wasserstein-1 distance (mm) between landing distributions (default 0)")
+      ->check(number_at_least(0));
+  return cmd;
+}
+
+// ces-sim resume DIR [--threads N] [-q].
+CLI::App* add_resume_command(CLI::App& app, Args& args) {
+  CLI::App* cmd = app.add_subcommand(
+      "resume", "Continue an unfinished run from its checkpoint (scenes with output.checkpoint)");
+  cmd->add_option("dir", args.dir_a, "The run's output folder (it holds partial/)")->required();
+  cmd->add_option("--threads", args.threads, "Worker threads")->check(whole_number(1, 1024));
+  cmd->add_flag("-q,--quiet", args.quiet, "No progress line and no end-of-run report");
+  return cmd;
+}
+
 // Runs the chosen command; maps failures to the documented exit codes.
 int dispatch(const CLI::App& app, const CLI::App* validate_cmd, const CLI::App* schema_cmd,
              const CLI::App* compare_cmd, const CLI::App* resume_cmd, const Args& args) {
@@ -414,32 +443,8 @@ int main(int argc, char** argv) {
   schema_cmd->add_flag("--markdown", args.markdown,
                        "Print the scene format as a Markdown reference (docs/scene-format.md)");
 
-  CLI::App* compare_cmd =
-      app.add_subcommand("compare", "Do two output folders agree within tolerances?");
-  compare_cmd->add_option("dir_a", args.dir_a, "Output folder A")->required();
-  compare_cmd->add_option("dir_b", args.dir_b, "Output folder B")->required();
-  compare_cmd
-      ->add_option("--tol-count", args.tolerances.tol_count,
-                   "Particles a bin or product may differ by (default 0)")
-      ->check(whole_number(0));
-  compare_cmd
-      ->add_option("--tol-mass", args.tolerances.tol_mass,
-                   "Mass difference per cell as a fraction of that material's total over the "
-                   "collector's rows of the file (the larger of the two folders'); "
-                   "also the absolute tolerance on grade and recovery (default 0)")
-      ->check(number_at_least(0));
-  compare_cmd
-      ->add_option("--tol-w1", args.tolerances.tol_w1_mm,
-                   "Wasserstein-1 distance (mm) between landing distributions (default 0)")
-      ->check(number_at_least(0));
-  CLI::App* resume_cmd = app.add_subcommand(
-      "resume", "Continue an unfinished run from its checkpoint (scenes with output.checkpoint)");
-  resume_cmd->add_option("dir", args.dir_a, "The run's output folder (it holds partial/)")
-      ->required();
-  resume_cmd->add_option("--threads", args.threads, "Worker threads")
-      ->check(whole_number(1, 1024));
-  resume_cmd->add_flag("-q,--quiet", args.quiet, "No progress line and no end-of-run report");
-
+  CLI::App* compare_cmd = add_compare_command(app, args);
+  CLI::App* resume_cmd = add_resume_command(app, args);
   StudyArgs study_args;
   CLI::App* study_cmd = add_study_command(app, args, study_args);
   app.require_subcommand(0, 1);
