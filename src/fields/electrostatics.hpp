@@ -118,8 +118,8 @@ struct CoronaZone {
 //    (Pauthenier growth toward the flat-flake or sphere saturation charge in
 //    |E|, τ_c = 4 ε0 |E| / J; flat over the nearest drum surface, at the
 //    gap under it), is zeroed by a touch of the brush; the force
-//    is Q E, plus the image force along −n of its closest drum contact in
-//    this step's list (touching or within the collision envelope, gap g):
+//    is Q E, plus the image force along −n of the drum surface nearest it
+//    (from the geometry, gap g, within one drum radius: nearest_drum):
 //    the sphere law with its charge r + g from the drum, or for a flake
 //    lying flat over the drum the face law bridged to a point charge far
 //    off (flat_image_force). The image force does not wait for a touch
