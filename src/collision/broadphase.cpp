@@ -38,8 +38,21 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
   if (n < 2) return;
   const double max_radius = *std::max_element(radii.begin(), radii.end());
   // Cells twice the largest radius: any overlapping pair sits in adjacent cells.
-  const double inv_cell = 1.0 / (2.0 * max_radius);
+  place_in_cells(centers, 1.0 / (2.0 * max_radius));
+  const std::size_t chunks = chunk_count(n, kChunk);
+  if (chunk_partners_.size() < chunks) chunk_partners_.resize(chunks);  // keeps capacities
+  runs_.resize(n);
+  // Dense regions of the flow cost more per entry: for_each_chunk evens
+  // them out, as in collide.cpp.
+  for_each_range(n, kChunk, true, [&](std::size_t ch, std::size_t begin, std::size_t end) {
+    sweep(ch, begin, end, centers, radii);
+  });
+  write_pairs(pairs);
+}
 
+// Each centre's cell, and the entries sorted by it.
+void GridBroadphase::place_in_cells(const std::vector<Vec3>& centers, double inv_cell) {
+  const std::size_t n = centers.size();
   entries_.resize(n);
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
   for (std::ptrdiff_t s = 0; s < std::ptrdiff_t(n); ++s) {
@@ -49,20 +62,14 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
                                 std::int32_t(s)};
   }
   sort_entries();
+}
 
-  const std::size_t chunks = chunk_count(n, kChunk);
-  if (chunk_partners_.size() < chunks) chunk_partners_.resize(chunks);  // keeps capacities
-  runs_.resize(n);
-  // Dense regions of the flow cost more per entry: for_each_chunk evens
-  // them out, as in collide.cpp.
-  for_each_range(n, kChunk, true, [&](std::size_t ch, std::size_t begin, std::size_t end) {
-    sweep(ch, begin, end, centers, radii);
-  });
-
-  // Each particle's run in index order: the pairs come out sorted by (i, j)
-  // whatever the chunks and threads. Where a block of particles' runs start
-  // is a prefix sum over the blocks' pair counts, so that neither pass is
-  // serial.
+// Each particle's run in index order: the pairs come out sorted by (i, j)
+// whatever the chunks and threads. Where a block of particles' runs start
+// is a prefix sum over the blocks' pair counts, so that neither pass is
+// serial.
+void GridBroadphase::write_pairs(std::vector<std::pair<std::int32_t, std::int32_t>>& pairs) {
+  const std::size_t n = runs_.size();
   const std::size_t blocks = chunk_count(n, kBlock);
   block_first_.assign(blocks + 1, 0);
 #pragma omp parallel for schedule(static) if (blocks > 1)

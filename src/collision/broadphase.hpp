@@ -28,9 +28,11 @@ class GridBroadphase {
   struct Run {
     std::uint32_t chunk, begin, count;
   };
+  void place_in_cells(const std::vector<Vec3>& centers, double inv_cell);
   void sort_entries();
   void sweep(std::size_t chunk, std::size_t begin, std::size_t end,
              const std::vector<Vec3>& centers, const std::vector<double>& radii);
+  void write_pairs(std::vector<std::pair<std::int32_t, std::int32_t>>& pairs);
   std::vector<Entry> entries_;  // by cell, then index
   std::vector<Entry> sorted_;   // the merges' other buffer
   std::vector<OwnLine<std::vector<std::int32_t>>> chunk_partners_;
