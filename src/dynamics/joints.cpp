@@ -76,50 +76,62 @@ std::vector<JointFrame> make_joint_frames(const Model& model, const Bodies& bodi
   return frames;
 }
 
+namespace {
+
+// Joint j's rows, at its current geometry c; returns its position error.
+// Stabilization: each row removes its whole position error in one step.
+double add_joint_rows(const Joint& j, const Current& c, double h, std::vector<BilateralRow>& rows) {
+  Vec3 p1, p2;
+  perpendiculars(c.axis_a, p1, p2);
+  const Vec3 axes[] = {Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()};
+  double drift = 0.0;
+  if (j.type == JointType::Prismatic) {
+    for (const Vec3& d : {p1, p2}) rows.push_back(linear_row(c, d, d.dot(c.separation) / h));
+    drift = std::hypot(p1.dot(c.separation), p2.dot(c.separation));
+  } else {
+    for (const Vec3& d : axes) rows.push_back(linear_row(c, d, d.dot(c.separation) / h));
+    drift = c.separation.norm();
+  }
+  if (j.type == JointType::Revolute) {
+    for (const Vec3& d : {p1, p2})
+      rows.push_back(angular_row(c, c.axis_b.cross(d), d.dot(c.axis_b) / h));
+  } else {
+    for (const Vec3& d : axes) rows.push_back(angular_row(c, d, d.dot(c.rotation_error) / h));
+  }
+  return drift;
+}
+
+// Motor m's row on its joint j, at the joint's current geometry c: a speed
+// about or along the axis (for a position target, the speed that reaches
+// it in one step, capped), with the force capped.
+BilateralRow motor_row(const Motor& m, const Joint& j, const Current& c, double h) {
+  BilateralRow r;
+  if (j.type == JointType::Revolute) {
+    r = angular_row(c, c.axis_a, -m.target);
+  } else {
+    double speed = m.target;
+    if (m.mode == Motor::Mode::Position)
+      speed = std::clamp((m.target - c.axis_a.dot(c.separation)) / h, -m.max_speed, m.max_speed);
+    r = linear_row(c, c.axis_a, -speed);
+  }
+  r.lo = -m.max_force * h;
+  r.hi = m.max_force * h;
+  return r;
+}
+
+}  // namespace
+
 double joint_rows(const Model& model, const std::vector<JointFrame>& frames, const Bodies& bodies,
                   int first_body, double h, std::vector<BilateralRow>& rows) {
   double drift = 0.0;
   std::vector<Current> geometry;
   for (std::size_t k = 0; k < model.joints.size(); ++k) {
-    const Joint& j = model.joints[k];
-    const Current c = current(j, frames[k], bodies, first_body);
-    geometry.push_back(c);
-    Vec3 p1, p2;
-    perpendiculars(c.axis_a, p1, p2);
-    // Stabilization: each row removes its whole position error in one step.
-    if (j.type == JointType::Prismatic) {
-      for (const Vec3& d : {p1, p2}) rows.push_back(linear_row(c, d, d.dot(c.separation) / h));
-      drift = std::max(drift, std::hypot(p1.dot(c.separation), p2.dot(c.separation)));
-    } else {
-      for (const Vec3& d : {Vec3(Vec3::UnitX()), Vec3(Vec3::UnitY()), Vec3(Vec3::UnitZ())})
-        rows.push_back(linear_row(c, d, d.dot(c.separation) / h));
-      drift = std::max(drift, c.separation.norm());
-    }
-    if (j.type == JointType::Revolute) {
-      for (const Vec3& d : {p1, p2}) {
-        BilateralRow r = angular_row(c, c.axis_b.cross(d), d.dot(c.axis_b) / h);
-        rows.push_back(r);
-      }
-    } else {
-      for (const Vec3& d : {Vec3(Vec3::UnitX()), Vec3(Vec3::UnitY()), Vec3(Vec3::UnitZ())})
-        rows.push_back(angular_row(c, d, d.dot(c.rotation_error) / h));
-    }
+    geometry.push_back(current(model.joints[k], frames[k], bodies, first_body));
+    drift = std::max(drift, add_joint_rows(model.joints[k], geometry.back(), h, rows));
   }
   for (const Motor& m : model.motors) {
-    const Joint& j = model.joints[std::size_t(m.joint)];
-    const Current& c = geometry[std::size_t(m.joint)];
-    BilateralRow r;
-    if (j.type == JointType::Revolute) {
-      r = angular_row(c, c.axis_a, -m.target);
-    } else {
-      double speed = m.target;
-      if (m.mode == Motor::Mode::Position)
-        speed = std::clamp((m.target - c.axis_a.dot(c.separation)) / h, -m.max_speed, m.max_speed);
-      r = linear_row(c, c.axis_a, -speed);
-    }
-    r.lo = -m.max_force * h;
-    r.hi = m.max_force * h;
-    rows.push_back(r);
+    const auto k = std::size_t(m.joint);
+    rows.push_back(motor_row(m, model.joints[k], geometry[k], h));
   }
   return drift;
 }
