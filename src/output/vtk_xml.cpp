@@ -5,6 +5,7 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "common/parallel.hpp"
 #include "output/format.hpp"
 
 namespace ces::output {
@@ -21,7 +22,7 @@ void append_raw(std::string& out, T value) {
 
 // The header and the compressed blocks of one array.
 std::string compress_array(std::string_view bytes) {
-  const std::size_t blocks = (bytes.size() + kBlock - 1) / kBlock;
+  const std::size_t blocks = chunk_count(bytes.size(), kBlock);
   std::string data;
   std::vector<std::uint64_t> sizes;
   std::vector<Bytef> buffer(compressBound(kBlock));
