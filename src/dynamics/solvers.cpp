@@ -126,20 +126,14 @@ struct ApgdState {
   CcpProblem::TrialSums t;
 };
 
-// The next iteration's theta, momentum and trial sums, if x1 is accepted.
-struct ApgdNext {
-  double theta = 1.0;
-  CcpProblem::Momentum momentum;
-  CcpProblem::TrialSums t;
-};
-
 // x1's gradient pass (making the next trial with it unless `last`),
 // doubling L and making x1 again until the sufficient-decrease test holds
-// or L passes L_cap. A backtracking step changes t.uphill and L, so the
+// or L passes L_cap. Returns the next iteration's state if x1 is accepted
+// (L relaxed by 0.9). A backtracking step changes t.uphill and L, so the
 // next iteration's theta and momentum are made again with them.
-ApgdNext gradient_pass(const CcpProblem& p, const ApgdIterates& v, ApgdState& st, double L_cap,
-                       bool last) {
-  ApgdNext next;
+ApgdState gradient_pass(const CcpProblem& p, const ApgdIterates& v, ApgdState& st, double L_cap,
+                        bool last) {
+  ApgdState next;
   for (;;) {
     const double theta = st.theta;
     const double theta1 = 0.5 * (-theta * theta + theta * std::sqrt(theta * theta + 4.0));
@@ -147,8 +141,9 @@ ApgdNext gradient_pass(const CcpProblem& p, const ApgdIterates& v, ApgdState& st
     const bool restart = st.t.uphill > 0.0;  // momentum points uphill
     next.theta = restart ? 1.0 : theta1;
     next.momentum = restart ? CcpProblem::Momentum{} : CcpProblem::Momentum{1.0 + beta, beta};
+    next.L = st.L * 0.9;
     CcpProblem::NextTrial trial;
-    if (!last) trial = {v.next(), v.g(), next.momentum, 1.0 / (st.L * 0.9)};
+    if (!last) trial = {v.next(), v.g(), next.momentum, 1.0 / next.L};
     next.t = p.apgd_gradient(v.trial(), v.g_trial(), v.x(), v.x_old(), st.momentum, st.t, trial);
     if (st.t.dnd <= st.L * st.t.dd * (1.0 + 1e-10) || st.L > L_cap) return next;
     st.L *= 2.0;
@@ -195,7 +190,7 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
   int it = 0;
   for (; it < s.max_iterations; ++it) {
     v.place_next();
-    const ApgdNext next = gradient_pass(p, v, st, L_cap, it + 1 == s.max_iterations);
+    const ApgdState next = gradient_pass(p, v, st, L_cap, it + 1 == s.max_iterations);
     const double rms = std::sqrt(st.t.res_sum / double(m));
     if (accurate(p, s, rms, v.g_trial(), true)) {
       record.take(rms);
@@ -209,10 +204,7 @@ SolveStats solve_apgd(const CcpProblem& p, const SolverSettings& s, Span out, So
       v.trial_is_best();
     }
     v.accept();
-    st.theta = next.theta;
-    st.momentum = next.momentum;
-    st.L *= 0.9;
-    st.t = next.t;
+    st = next;
   }
   record.stats.iterations = it;
   p.to_local(v.best(), out);
