@@ -196,21 +196,20 @@ struct Corner {
   std::uint32_t sphere;
 };
 
-// The plane fitted to a shape's centres: through their mean, its normal
-// the direction they spread least in, its x axis the one they spread most.
-struct CentrePlane {
-  Vec3 origin, normal, x_axis, y_axis;
-};
-
-CentrePlane fit_plane(const std::vector<Vec3>& centers) {
+// The plane fitted to a shape's centres, into face's frame: through their
+// mean, its normal the direction they spread least in, its x axis the one
+// they spread most.
+void fit_plane(const std::vector<Vec3>& centers, FlatFace& face) {
   Vec3 origin = Vec3::Zero();
   for (const Vec3& c : centers) origin += c;
   origin /= double(centers.size());
   Mat3 spread = Mat3::Zero();
   for (const Vec3& c : centers) spread += (c - origin) * (c - origin).transpose();
   const Eigen::SelfAdjointEigenSolver<Mat3> eig(spread);
-  const Vec3 normal = eig.eigenvectors().col(0), x_axis = eig.eigenvectors().col(2);
-  return {origin, normal, x_axis, normal.cross(x_axis)};
+  face.origin = origin;
+  face.normal = eig.eigenvectors().col(0);
+  face.x_axis = eig.eigenvectors().col(2);
+  face.y_axis = face.normal.cross(face.x_axis);
 }
 
 // The hull of points (a plane's centres), counter-clockwise, into
@@ -260,23 +259,19 @@ FlatFace flat_face(const ParticleShape& s) {
   if (s.centers.size() < 3) return face;
   for (double r : s.radii)
     if (std::abs(r - s.radii[0]) > 1e-12 * s.radii[0]) return face;
-  const CentrePlane plane = fit_plane(s.centers);
+  fit_plane(s.centers, face);
   const double thin = 1e-9 * s.bounding_radius;
   std::vector<Corner> points;
   for (std::size_t k = 0; k < s.centers.size(); ++k) {
-    const Vec3 d = s.centers[k] - plane.origin;
-    if (std::abs(d.dot(plane.normal)) > thin) return face;
-    points.push_back({d.dot(plane.x_axis), d.dot(plane.y_axis), std::uint32_t(k)});
+    const Vec3 d = s.centers[k] - face.origin;
+    if (std::abs(d.dot(face.normal)) > thin) return FlatFace{};
+    points.push_back({d.dot(face.x_axis), d.dot(face.y_axis), std::uint32_t(k)});
   }
   add_hull(std::move(points), thin * s.bounding_radius, face);
   if (face.hull.size() < 3) return FlatFace{};  // centres in a line: a rod, not a plate
   face.at_corner.assign(s.centers.size(), 0);
   for (std::uint32_t k : face.corners) face.at_corner[k] = 1;
   face.beyond = beyond(face);
-  face.normal = plane.normal;
-  face.x_axis = plane.x_axis;
-  face.y_axis = plane.y_axis;
-  face.origin = plane.origin;
   return face;
 }
 
