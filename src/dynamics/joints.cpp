@@ -123,15 +123,17 @@ BilateralRow motor_row(const Motor& m, const Joint& j, const Current& c, double 
 
 double joint_rows(const Model& model, const std::vector<JointFrame>& frames, const Bodies& bodies,
                   int first_body, double h, std::vector<BilateralRow>& rows) {
+  // A motor's joint's geometry is made again where the motor needs it: a
+  // few products, where keeping every joint's would allocate each step.
+  auto geometry = [&](std::size_t k) {
+    return current(model.joints[k], frames[k], bodies, first_body);
+  };
   double drift = 0.0;
-  std::vector<Current> geometry;
-  for (std::size_t k = 0; k < model.joints.size(); ++k) {
-    geometry.push_back(current(model.joints[k], frames[k], bodies, first_body));
-    drift = std::max(drift, add_joint_rows(model.joints[k], geometry.back(), h, rows));
-  }
+  for (std::size_t k = 0; k < model.joints.size(); ++k)
+    drift = std::max(drift, add_joint_rows(model.joints[k], geometry(k), h, rows));
   for (const Motor& m : model.motors) {
     const auto k = std::size_t(m.joint);
-    rows.push_back(motor_row(m, model.joints[k], geometry[k], h));
+    rows.push_back(motor_row(m, model.joints[k], geometry(k), h));
   }
   return drift;
 }
