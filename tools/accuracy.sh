@@ -26,8 +26,7 @@ source tools/runs.sh
 out=out/accuracy
 doc=docs/accuracy_defaults.md
 seeds=(1 2 3)
-solve=(--set solver.tolerance=1e-5 --set solver.penetration_tolerance=0.02
-       --set solver.max_iterations=400)
+solve=("${converged_solve[@]}")
 loose=(--set solver.tolerance=1e-3)
 tight=(--set time.step=0.125ms --set solver.tolerance=5e-6 --set solver.penetration_tolerance=0.01
        --set solver.max_iterations=800)
