@@ -47,10 +47,7 @@ double touch_tolerance(const Model& model, const Contacts& c, std::size_t k, con
   const double r = c.radius[k];
   const Vec3 arm = c.point[k] - bodies.pose[body].position;
   const double rho = w.squaredNorm() > 0.0 ? arm.cross(w.normalized()).norm() : 0.0;
-  const Vec3 surface = bodies.velocity[body] + w.cross(arm);
-  const Vec3 particle =
-      p.velocity[i] + p.angular_velocity[i].cross(c.point[k] - p.position[i]);
-  const Vec3 slip = particle - surface;
+  const Vec3 slip = p.velocity_at(i, c.point[k]) - bodies.velocity_at(body, c.point[k]);
   const Vec3& n = c.normal[k];
   const double v_t = (slip - slip.dot(n) * n).norm();
   return kTouchFraction * r + w.squaredNorm() * (rho + r) * h * h + 2.0 * friction * v_t * h;

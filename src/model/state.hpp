@@ -46,6 +46,10 @@ struct Particles {
 
   bool asleep(std::size_t i) const { return carrier[i] != kAwake; }
   std::size_t size() const { return id.size(); }
+  // The velocity of particle i's material point at x.
+  Vec3 velocity_at(std::size_t i, const Vec3& x) const {
+    return velocity[i] + angular_velocity[i].cross(x - position[i]);
+  }
   void push(std::uint64_t new_id, int shape_index, double size_scale, int material_index,
             double m, const Vec3& inertia, const Vec3& x, const Quat& q, const Vec3& v,
             const Vec3& w, double birth_time);
