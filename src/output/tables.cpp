@@ -46,9 +46,10 @@ ProductResult product_result(const Collection& c, int collector, int product,
   MassUnits main = 0;
   double squares = 0.0;
   for (std::size_t i = 0; i < materials.size(); ++i) {
-    const Tally& cell = t.products[base + std::size_t(materials[i])];
+    const std::size_t at = base + std::size_t(materials[i]);
+    const Tally& cell = t.products[at];
     total += cell;
-    squares += t.product_squares[base + std::size_t(materials[i])];
+    squares += t.product_squares[at];
     if (cell.mass > main) {  // ties keep the first (lower index) material
       main = cell.mass;
       r.main_share = int(i);
