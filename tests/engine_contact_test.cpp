@@ -5,7 +5,9 @@
 
 #include <cmath>
 #include <memory>
+#include <random>
 
+#include "collision/manifold.hpp"
 #include "engine_support.hpp"
 #include "sim/world.hpp"
 #include "support.hpp"
@@ -304,6 +306,56 @@ TEST(Engine, PairListsOnlyTheRowsItCanCloseInTheStep) {
   EXPECT_EQ(closing.listed, 1u);
   EXPECT_LE(closing.overlap, SolverSettings{}.penetration_tolerance);
   EXPECT_GT(closing.overlap, -1e-3);  // they met
+}
+
+// A pair's candidates are looked for out to PairMotion::search_envelope,
+// which must reach past every point the cull by reach keeps: at points
+// within the two bounding radii plus half that envelope of both centres
+// (where a candidate's point lies), resting plus the pair's reach falls
+// short of it. Random motions, spins and speed changes, the points inside
+// both balls and on their surfaces. Two flakes riding the drum together
+// look for candidates far nearer than their own envelopes.
+TEST(Engine, PairSearchEnvelopeReachesPastEveryPointTheCullKeeps) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  auto vec = [&](double scale) -> Vec3 { return Vec3(u(rng), u(rng), u(rng)) * scale; };
+  auto unit = [&] {
+    Vec3 d;
+    do d = vec(1.0);
+    while (d.squaredNorm() > 1.0 || d.squaredNorm() < 1e-6);
+    return Vec3(d.normalized());
+  };
+  const double h = 5e-4, bounds = 1.2e-3, resting = 2e-5;
+  std::size_t checked = 0;
+  for (int pair = 0; pair < 2000; ++pair) {
+    const Vec3 xa = vec(0.2), xb = xa + unit() * (bounds * 0.5 * (1.0 + u(rng)));
+    const PairMotion m{xa,
+                       vec(2.0),
+                       vec(300.0),
+                       xb,
+                       vec(2.0),
+                       vec(300.0),
+                       h,
+                       SpeedChange{0.5 * (1.0 + u(rng)), 50.0 * (1.0 + u(rng))},
+                       SpeedChange{0.5 * (1.0 + u(rng)), 50.0 * (1.0 + u(rng))}};
+    const double E = m.search_envelope(resting, bounds, 1.0);
+    if (E == 1.0) continue;  // spun too fast for a bound: the own envelopes
+    const double ball = bounds + 0.5 * E;
+    for (int k = 0; k < 50; ++k) {
+      const double depth = k % 2 == 0 ? 1.0 : std::cbrt(0.5 * (1.0 + u(rng)));
+      const Vec3 p = (k % 4 < 2 ? xa : xb) + unit() * (ball * depth);
+      if ((p - xa).norm() > ball || (p - xb).norm() > ball) continue;
+      EXPECT_LT(resting + m.reach(p), E) << "pair " << pair << ", point " << k;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 20000u);
+  const Vec3 ride(1.17, 0, 0), turn(0, 0, -7.3);  // the drum's surface at 70 rpm
+  const PairMotion riding{
+      Vec3(0.16, 0, 0),      ride, turn, Vec3(0.16, 0, 1e-3), ride, turn, h, SpeedChange{0.01, 1.0},
+      SpeedChange{0.01, 1.0}};
+  const double own = 2.0 * (0.5 * resting + ride.norm() * h);
+  EXPECT_LT(riding.search_envelope(resting, bounds, own), 0.1 * own);
 }
 
 // Two spheres riding together 0.6 mm apart (r = 1 mm, 1 m/s across their

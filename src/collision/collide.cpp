@@ -234,26 +234,6 @@ void drop_unreachable(const PairMotion& motion, double resting, std::vector<Cand
   std::erase_if(c, [&](const Candidate& k) { return k.gap > resting + motion.reach(k.point); });
 }
 
-// How far apart a pair's candidates are looked for: no farther than
-// drop_unreachable keeps, where that is nearer than the two envelopes.
-// Each particle's envelope is its own travel, so two flakes riding the
-// drum together would list each other's spheres a millimetre apart, to be
-// dropped; what they can close is far less. A candidate's point lies
-// within `bounds` (the two bounding radii) plus half its gap of either
-// centre, so there motion.reach is at most h (L + W (bounds + E / 2)), L
-// the relative speed and both sides' linear changes, W both spins and
-// angular changes. E is the least envelope above resting plus that: with
-// it the pair finds every candidate the cull keeps, and no other; the
-// margin is far above the rounding of the gaps and the reach.
-double pair_envelope(const PairMotion& m, double resting, double bounds, double envelopes) {
-  const double L = (m.vb - m.va).norm() + m.ca.linear + m.cb.linear;
-  const double W = m.wa.norm() + m.wb.norm() + m.ca.angular + m.cb.angular;
-  const double shrink = 1.0 - 0.5 * m.h * W;
-  if (!(shrink > 0.5)) return envelopes;
-  const double E = (resting + m.h * (L + W * bounds)) / shrink * (1.0 + 1e-6);
-  return std::min(envelopes, E + std::numeric_limits<double>::min());  // above a gap of 0 kept
-}
-
 // How far any point of a body moves in a step, for the culls: it turns
 // about its frame's origin, reaching at most the farthest corner of its
 // bounds. (A plane's are infinite: only a turning body adds the term.)
@@ -551,7 +531,7 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
       const double bounds = bounding_radius(model, p, ui) + bounding_radius(model, p, uj);
       candidates.clear();
       pair_candidates(model, p, ui, uj,
-                      pair_envelope(motion, resting, bounds, envelope_[ui] + envelope_[uj]),
+                      motion.search_envelope(resting, bounds, envelope_[ui] + envelope_[uj]),
                       candidates);
       drop_unreachable(motion, resting, candidates);
       reduce_manifold(candidates, i, j, surfaces, motion, rule, part);

@@ -339,6 +339,20 @@ class NormalGroups {
 
 }  // namespace
 
+// There reach is at most h (L + W (bounds + E / 2)), L the relative speed
+// and both sides' linear changes, W both spins and angular changes; E is
+// the least envelope above resting plus that, with a margin far above the
+// rounding of the gaps and the reach. Where the spins turn the pair by a
+// radian or more in a step (h W >= 1), no such E is worth solving for.
+double PairMotion::search_envelope(double resting, double bounds, double envelopes) const {
+  const double L = (vb - va).norm() + ca.linear + cb.linear;
+  const double W = wa.norm() + wb.norm() + ca.angular + cb.angular;
+  const double shrink = 1.0 - 0.5 * h * W;
+  if (!(shrink > 0.5)) return envelopes;
+  const double E = (resting + h * (L + W * bounds)) / shrink * (1.0 + 1e-6);
+  return std::min(envelopes, E + std::numeric_limits<double>::min());  // above a gap of 0 kept
+}
+
 void reduce_manifold(const std::vector<Candidate>& c, int body_a, int body_b,
                      std::uint32_t surfaces, const PairMotion& motion, Reduction rule,
                      Contacts& out) {

@@ -43,6 +43,14 @@ struct PairMotion {
     const double b = cb.linear + cb.angular * (p - xb).norm();
     return travel(p) + h * (a + b);
   }
+  // How far apart the pair's candidates need be looked for: beyond it no
+  // point within `bounds` (the two bounding radii) plus half its gap of
+  // either centre is within `resting` plus its reach, so a cull by reach
+  // keeps none of them. `envelopes`, the two particles' own, where that
+  // is nearer. Each particle's envelope is its own travel, so two flakes
+  // riding the drum together would list each other's spheres a millimetre
+  // apart, to be culled; what they can close is far less.
+  double search_envelope(double resting, double bounds, double envelopes) const;
 };
 
 // How reduce_manifold reduces a group: the scene's choice, and the overlap
