@@ -43,13 +43,13 @@ struct PairMotion {
     const double b = cb.linear + cb.angular * (p - xb).norm();
     return travel(p) + h * (a + b);
   }
-  // How far apart the pair's candidates need be looked for: beyond it no
-  // point within `bounds` (the two bounding radii) plus half its gap of
-  // either centre is within `resting` plus its reach, so a cull by reach
-  // keeps none of them. `envelopes`, the two particles' own, where that
-  // is nearer. Each particle's envelope is its own travel, so two flakes
-  // riding the drum together would list each other's spheres a millimetre
-  // apart, to be culled; what they can close is far less.
+  // How far apart the pair's candidates need be looked for: a candidate
+  // whose gap is this or more is one the cull by reach (a gap above
+  // `resting` plus the reach at its point) drops, wherever its point lies
+  // within `bounds` (the two bounding radii) plus half the gap of both
+  // centres. At most `envelopes`, the two particles' own: each is its own
+  // travel, so two flakes riding the drum together would list each
+  // other's spheres a millimetre apart only to cull them.
   double search_envelope(double resting, double bounds, double envelopes) const;
 };
 
