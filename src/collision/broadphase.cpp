@@ -42,8 +42,8 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
   const std::size_t chunks = chunk_count(n, kChunk);
   if (chunk_partners_.size() < chunks) chunk_partners_.resize(chunks);  // keeps capacities
   runs_.resize(n);
-  // Dense regions of the flow cost more per entry: for_each_chunk evens
-  // them out, as in collide.cpp.
+  // Dense regions of the flow cost more per entry: for_each_range's chunks
+  // even them out, as in collide.cpp.
   for_each_range(n, kChunk, true, [&](std::size_t ch, std::size_t begin, std::size_t end) {
     sweep(ch, begin, end, centers, radii);
   });

@@ -224,12 +224,10 @@ double resting_envelope(const Model& model, const Particles& p, std::size_t i) {
   return model.contact.envelope_fraction * s.smallest_radius() * p.scale[i];
 }
 
-// Each particle's envelope grows with its own travel in the step, so two
-// flakes riding the drum together list each other's spheres a millimetre
-// apart that their relative motion never closes. Out go the candidates
-// farther than the pair's resting envelopes plus what it can close there
-// this step (motion.reach): the envelope of the relative travel, which a
-// pile at rest has already.
+// The cull, point by point, that PairMotion::search_envelope bounds for the
+// whole pair: out go the candidates farther than the pair's resting
+// envelopes plus what it can close there this step (motion.reach), the
+// envelope of the relative travel, which a pile at rest has already.
 void drop_unreachable(const PairMotion& motion, double resting, std::vector<Candidate>& c) {
   std::erase_if(c, [&](const Candidate& k) { return k.gap > resting + motion.reach(k.point); });
 }

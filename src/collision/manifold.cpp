@@ -339,11 +339,12 @@ class NormalGroups {
 
 }  // namespace
 
-// There reach is at most h (L + W (bounds + E / 2)), L the relative speed
-// and both sides' linear changes, W both spins and angular changes; E is
-// the least envelope above resting plus that, with a margin far above the
-// rounding of the gaps and the reach. Where the spins turn the pair by a
-// radian or more in a step (h W >= 1), no such E is worth solving for.
+// Within those balls reach is at most h (L + W (bounds + E / 2)), L the
+// relative speed and both sides' linear changes, W both spins and angular
+// changes; E is the least envelope above resting plus that, with a margin
+// far above the rounding of the gaps and the reach. Where the spins turn
+// the pair by a radian or more in a step (h W >= 1), no such E is worth
+// solving for.
 double PairMotion::search_envelope(double resting, double bounds, double envelopes) const {
   const double L = (vb - va).norm() + ca.linear + cb.linear;
   const double W = wa.norm() + wb.norm() + ca.angular + cb.angular;

@@ -47,9 +47,8 @@ struct PairMotion {
   // whose gap is this or more is one the cull by reach (a gap above
   // `resting` plus the reach at its point) drops, wherever its point lies
   // within `bounds` (the two bounding radii) plus half the gap of both
-  // centres. At most `envelopes`, the two particles' own: each is its own
-  // travel, so two flakes riding the drum together would list each
-  // other's spheres a millimetre apart only to cull them.
+  // centres. At most `envelopes`, the two particles' own, which are their
+  // own travels: two flakes riding the drum together close far less.
   double search_envelope(double resting, double bounds, double envelopes) const;
 };
 
