@@ -208,8 +208,6 @@ const char* output_name(Output o) {
   return "?";
 }
 
-json vec_json(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
-
 json cylinder_json(const Cylinder& c) {
   return {{"axis", vec_json(c.axis)},
           {"center", vec_json(c.center)},

@@ -219,9 +219,9 @@ void orient(Mesh& mesh, MeshQuality& q) {
     }
 }
 
-nlohmann::ordered_json vec_json(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
-
 }  // namespace
+
+nlohmann::ordered_json vec_json(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
 
 Bounds Mesh::bounds() const {
   Bounds b;

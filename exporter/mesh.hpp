@@ -60,6 +60,9 @@ struct MeshQuality {
   nlohmann::ordered_json to_json() const;
 };
 
+// A vector as the JSON array [x, y, z] of the export report.
+nlohmann::ordered_json vec_json(const Vec3& v);
+
 // Welds vertices closer than `tolerance` (m), drops degenerate triangles,
 // winds every piece consistently across its shared edges, and turns closed
 // pieces outward (positive signed volume).
