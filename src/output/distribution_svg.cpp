@@ -14,9 +14,10 @@ namespace {
 constexpr const char* kColours[] = {"#D55E00", "#0072B2", "#009E73", "#CC79A7",
                                     "#E69F00", "#56B4E9", "#000000", "#F0E442"};
 constexpr double kWidth = 760, kPanelHeight = 420;
-constexpr double kLeft = 80, kRight = 170, kTop = 50, kBottom = 60;
+constexpr double kPanelLeft = 80, kPanelRight = 170, kPanelTop = 50, kPanelBottom = 60;
 
-double nice_ceiling(double v) {
+// v rounded up to a whole tick of an axis running from 0 to it.
+double tick_ceiling(double v) {
   const double step = svg::tick_step(v);
   return std::ceil(v / step) * step;
 }
@@ -25,16 +26,18 @@ double nice_ceiling(double v) {
 struct Frame {
   double x0, x1, y1;  // data ranges; y starts at 0
   double top;         // panel offset (px)
-  double px(double x) const { return kLeft + (x - x0) / (x1 - x0) * (kWidth - kLeft - kRight); }
+  double px(double x) const {
+    return kPanelLeft + (x - x0) / (x1 - x0) * (kWidth - kPanelLeft - kPanelRight);
+  }
   double py(double y) const {
-    return top + kTop + (1.0 - y / y1) * (kPanelHeight - kTop - kBottom);
+    return top + kPanelTop + (1.0 - y / y1) * (kPanelHeight - kPanelTop - kPanelBottom);
   }
 };
 
 void axes(std::string& s, const Frame& f) {
   const double bottom = f.py(0), top = f.py(f.y1);
-  s += "<rect x=\"" + svg_number(kLeft) + "\" y=\"" + svg_number(top) + "\" width=\"" +
-       svg_number(f.px(f.x1) - kLeft) + "\" height=\"" + svg_number(bottom - top) +
+  s += "<rect x=\"" + svg_number(kPanelLeft) + "\" y=\"" + svg_number(top) + "\" width=\"" +
+       svg_number(f.px(f.x1) - kPanelLeft) + "\" height=\"" + svg_number(bottom - top) +
        "\" fill=\"none\" stroke=\"#000\"/>\n";
   const double dx = svg::tick_step(f.x1 - f.x0);
   for (double x = std::ceil(f.x0 / dx) * dx; x <= f.x1 + 1e-9 * dx; x += dx) {
@@ -43,10 +46,10 @@ void axes(std::string& s, const Frame& f) {
   }
   const double dy = svg::tick_step(f.y1);
   for (double y = 0; y <= f.y1 + 1e-9 * dy; y += dy) {
-    svg::line(s, kLeft - 5, f.py(y), kLeft, f.py(y), "stroke=\"#000\"");
-    svg::text(s, kLeft - 8, f.py(y) + 5, format_number(y), "end");
+    svg::line(s, kPanelLeft - 5, f.py(y), kPanelLeft, f.py(y), "stroke=\"#000\"");
+    svg::text(s, kPanelLeft - 8, f.py(y) + 5, format_number(y), "end");
   }
-  svg::text(s, (kLeft + f.px(f.x1)) / 2, bottom + 45, "Position along the collector axis (mm)",
+  svg::text(s, (kPanelLeft + f.px(f.x1)) / 2, bottom + 45, "Position along the collector axis (mm)",
             "middle");
   const double mid = (top + bottom) / 2;
   svg::text(s, 25, mid, "Mass (% of the material collected)", "middle",
@@ -114,7 +117,7 @@ void panel(std::string& s, const Simulation& sim, const Collection& c, std::size
     pct.push_back(percentages(t, col, m, c.material_count()));
     for (const double p : pct.back()) peak = std::max(peak, p);
   }
-  const double y1 = peak > 0 ? nice_ceiling(1.1 * peak) : 100.0;
+  const double y1 = peak > 0 ? tick_ceiling(1.1 * peak) : 100.0;
   const Frame f{col.from * 1e3, col.to * 1e3, y1, double(k) * kPanelHeight};
   svg::text(s, kWidth / 2, f.top + 28, sim.name + ": landing distribution at " + col.name, "middle",
             " font-size=\"16\"");
@@ -133,7 +136,7 @@ void panel(std::string& s, const Simulation& sim, const Collection& c, std::size
     legend_y += 22;
   }
   if (peak == 0)
-    svg::text(s, (kLeft + f.px(f.x1)) / 2, f.py(y1 / 2), "nothing collected", "middle");
+    svg::text(s, (kPanelLeft + f.px(f.x1)) / 2, f.py(y1 / 2), "nothing collected", "middle");
 }
 
 }  // namespace
