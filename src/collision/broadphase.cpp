@@ -14,7 +14,7 @@ namespace {
 constexpr int kCellBits = 21;
 constexpr std::int64_t kCellBias = std::int64_t{1} << (kCellBits - 1);
 constexpr std::int64_t kCellMax = (std::int64_t{1} << kCellBits) - 1;
-constexpr std::size_t kChunk = 256;   // sorted entries per task
+constexpr std::size_t kSortChunk = 256;  // sorted entries per task
 constexpr std::size_t kBlock = 1024;  // particles per block of the pairs' placement
 
 std::int64_t cell_coord(double x, double inv_cell) {
@@ -39,12 +39,12 @@ void GridBroadphase::find_pairs(const std::vector<Vec3>& centers,
   const double max_radius = *std::max_element(radii.begin(), radii.end());
   // Cells twice the largest radius: any overlapping pair sits in adjacent cells.
   place_in_cells(centers, 1.0 / (2.0 * max_radius));
-  const std::size_t chunks = chunk_count(n, kChunk);
+  const std::size_t chunks = chunk_count(n, kSortChunk);
   if (chunk_partners_.size() < chunks) chunk_partners_.resize(chunks);  // keeps capacities
   runs_.resize(n);
   // Dense regions of the flow cost more per entry: for_each_range's chunks
   // even them out, as in collide.cpp.
-  for_each_range(n, kChunk, true, [&](std::size_t ch, std::size_t begin, std::size_t end) {
+  for_each_range(n, kSortChunk, true, [&](std::size_t ch, std::size_t begin, std::size_t end) {
     sweep(ch, begin, end, centers, radii);
   });
   write_pairs(pairs);

@@ -12,7 +12,7 @@
 namespace ces {
 namespace {
 
-constexpr std::size_t kChunk = 128;  // fixed, so contact order never depends on threads
+constexpr std::size_t kContactChunk = 128;  // fixed, so contact order never depends on threads
 
 // What gravity and the forces change particle i's velocity by within the
 // step (the forces are this step's after the collision: the last step's
@@ -253,7 +253,7 @@ void raise_to(double& target, double value) {
 template <class Fill>
 void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts& out,
                  std::size_t& used, Fill fill) {
-  const std::size_t count = chunk_count(n, kChunk);
+  const std::size_t count = chunk_count(n, kContactChunk);
   // Never shrink: the buffers keep their capacity from step to step.
   if (chunks.size() < count) chunks.resize(count);
   // Chunks by for_each_chunk: the particles are ordered in space, so those
@@ -263,7 +263,7 @@ void run_chunked(std::size_t n, std::vector<OwnLine<Contacts>>& chunks, Contacts
   // Handed out as threads free up (dynamic), the chunks' buffers would move
   // between the cores every step, which costs the pair loop what the second
   // thread gains. Each chunk fills its own list: the same contacts.
-  for_each_range(n, kChunk, true, [&](std::size_t ch, std::size_t begin, std::size_t end) {
+  for_each_range(n, kContactChunk, true, [&](std::size_t ch, std::size_t begin, std::size_t end) {
     chunks[ch].clear();
     fill(begin, end, chunks[ch]);
   });

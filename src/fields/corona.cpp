@@ -10,7 +10,6 @@
 namespace ces::fields {
 namespace {
 
-constexpr double kEps0 = kVacuumPermittivity;
 // The band reaches 3 S from the foot, where J is 1.8 % of J0.
 constexpr double kBandReach = 3.0;
 // Points on the wire surface at which its field is sampled for the onset.
@@ -45,7 +44,8 @@ double townsend_current(double voltage, double onset_voltage, double wire_radius
   const double u = std::abs(voltage), u0 = std::abs(onset_voltage);
   if (u <= u0) return 0.0;
   const double rc = 2.0 * height;
-  return 8.0 * kPi * kEps0 * mobility * u * (u - u0) / (rc * rc * std::log(rc / wire_radius));
+  return 8.0 * kPi * kVacuumPermittivity * mobility * u * (u - u0) /
+         (rc * rc * std::log(rc / wire_radius));
 }
 
 double band_exponent() { return 2.0 * std::log(2.0) / std::log(1.0 + 0.7 * 0.7); }
@@ -65,7 +65,7 @@ double band_peak_current_density(double current, double height) {
 }
 
 double space_charge_field(double current, double mobility) {
-  return std::sqrt(current / (2.0 * kPi * kEps0 * mobility));
+  return std::sqrt(current / (2.0 * kPi * kVacuumPermittivity * mobility));
 }
 
 bool CoronaBand::covers(const Vec3& x) const {
