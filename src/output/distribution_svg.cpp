@@ -14,7 +14,7 @@ namespace {
 constexpr const char* kColours[] = {"#D55E00", "#0072B2", "#009E73", "#CC79A7",
                                     "#E69F00", "#56B4E9", "#000000", "#F0E442"};
 constexpr double kWidth = 760, kPanelHeight = 420;
-constexpr double kPanelLeft = 80, kPanelRight = 170, kPanelTop = 50, kPanelBottom = 60;
+constexpr double kMarginLeft = 80, kMarginRight = 170, kMarginTop = 50, kMarginBottom = 60;
 
 // v rounded up to a whole tick of an axis running from 0 to it.
 double tick_ceiling(double v) {
@@ -27,17 +27,17 @@ struct Frame {
   double x0, x1, y1;  // data ranges; y starts at 0
   double top;         // panel offset (px)
   double px(double x) const {
-    return kPanelLeft + (x - x0) / (x1 - x0) * (kWidth - kPanelLeft - kPanelRight);
+    return kMarginLeft + (x - x0) / (x1 - x0) * (kWidth - kMarginLeft - kMarginRight);
   }
   double py(double y) const {
-    return top + kPanelTop + (1.0 - y / y1) * (kPanelHeight - kPanelTop - kPanelBottom);
+    return top + kMarginTop + (1.0 - y / y1) * (kPanelHeight - kMarginTop - kMarginBottom);
   }
 };
 
 void axes(std::string& s, const Frame& f) {
   const double bottom = f.py(0), top = f.py(f.y1);
-  s += "<rect x=\"" + svg_number(kPanelLeft) + "\" y=\"" + svg_number(top) + "\" width=\"" +
-       svg_number(f.px(f.x1) - kPanelLeft) + "\" height=\"" + svg_number(bottom - top) +
+  s += "<rect x=\"" + svg_number(kMarginLeft) + "\" y=\"" + svg_number(top) + "\" width=\"" +
+       svg_number(f.px(f.x1) - kMarginLeft) + "\" height=\"" + svg_number(bottom - top) +
        "\" fill=\"none\" stroke=\"#000\"/>\n";
   const double dx = svg::tick_step(f.x1 - f.x0);
   for (double x = std::ceil(f.x0 / dx) * dx; x <= f.x1 + 1e-9 * dx; x += dx) {
@@ -46,11 +46,11 @@ void axes(std::string& s, const Frame& f) {
   }
   const double dy = svg::tick_step(f.y1);
   for (double y = 0; y <= f.y1 + 1e-9 * dy; y += dy) {
-    svg::line(s, kPanelLeft - 5, f.py(y), kPanelLeft, f.py(y), "stroke=\"#000\"");
-    svg::text(s, kPanelLeft - 8, f.py(y) + 5, format_number(y), "end");
+    svg::line(s, kMarginLeft - 5, f.py(y), kMarginLeft, f.py(y), "stroke=\"#000\"");
+    svg::text(s, kMarginLeft - 8, f.py(y) + 5, format_number(y), "end");
   }
-  svg::text(s, (kPanelLeft + f.px(f.x1)) / 2, bottom + 45, "Position along the collector axis (mm)",
-            "middle");
+  svg::text(s, (kMarginLeft + f.px(f.x1)) / 2, bottom + 45,
+            "Position along the collector axis (mm)", "middle");
   const double mid = (top + bottom) / 2;
   svg::text(s, 25, mid, "Mass (% of the material collected)", "middle",
             " transform=\"rotate(-90 25 " + svg_number(mid) + ")\"");
@@ -136,7 +136,7 @@ void panel(std::string& s, const Simulation& sim, const Collection& c, std::size
     legend_y += 22;
   }
   if (peak == 0)
-    svg::text(s, (kPanelLeft + f.px(f.x1)) / 2, f.py(y1 / 2), "nothing collected", "middle");
+    svg::text(s, (kMarginLeft + f.px(f.x1)) / 2, f.py(y1 / 2), "nothing collected", "middle");
 }
 
 }  // namespace
