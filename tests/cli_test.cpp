@@ -514,6 +514,14 @@ TEST(Cli, CompareRefusesTablesItDoesNotKnow) {
                  ":1: expected the header collector,bin,from_m,to_m,material,count,mass_kg, "
                  "found 'garbage'");
   fs::copy_file(a / "bins.csv", b / "bins.csv", fs::copy_options::overwrite_existing);
+  // products.csv has two headers it reads (with and without the standard
+  // errors): the message names both.
+  std::ofstream(b / "products.csv") << "collector,product\n";
+  expect_refused((b / "products.csv").string() +
+                 ":1: expected the header "
+                 "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery,grade_se,"
+                 "recovery_se or collector,product,from_m,to_m,material,count,mass_kg,grade,"
+                 "recovery, found 'collector,product'");
   std::string products = read_text(a / "products.csv");
   std::size_t cell = products.find('\n') + 1;  // row 2's grade: its eighth field
   for (int field = 0; field < 7; ++field) cell = products.find(',', cell) + 1;

@@ -202,10 +202,13 @@ Table read_table(const std::filesystem::path& file,
   const bool accepted = accepted_headers.size() == 0 ||
                         std::any_of(accepted_headers.begin(), accepted_headers.end(),
                                     [&](std::string_view h) { return t.header == split(h); });
-  if (!accepted)
-    throw IoError(file.string() + ":1: expected the header " +
-                  std::string(*accepted_headers.begin()) + ", found '" +
+  if (!accepted) {
+    std::string expected;
+    for (std::string_view h : accepted_headers)
+      expected += (expected.empty() ? "" : " or ") + std::string(h);
+    throw IoError(file.string() + ":1: expected the header " + expected + ", found '" +
                   std::string(csv::trim(csv::without_bom(line))) + "'");
+  }
   for (int n = 2; std::getline(in, line); ++n) {
     if (csv::trim(line).empty()) continue;
     t.rows.push_back(split(line));
