@@ -527,10 +527,16 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
                               h,              change_[ui],   change_[uj]};
       const double resting = resting_envelope(model, p, ui) + resting_envelope(model, p, uj);
       const double bounds = bounding_radius(model, p, ui) + bounding_radius(model, p, uj);
+      const double envelope =
+          motion.search_envelope(resting, bounds, envelope_[ui] + envelope_[uj]);
+      // Bounding spheres farther apart than the envelope: every sphere's,
+      // face's and rim's test in pair_candidates would fail (each sphere
+      // lies within its particle's bounding sphere). The margin is far
+      // above the rounding.
+      const double reach = (bounds + envelope) * (1.0 + 1e-9);
+      if ((p.position[ui] - p.position[uj]).squaredNorm() > reach * reach) continue;
       candidates.clear();
-      pair_candidates(model, p, ui, uj,
-                      motion.search_envelope(resting, bounds, envelope_[ui] + envelope_[uj]),
-                      candidates);
+      pair_candidates(model, p, ui, uj, envelope, candidates);
       drop_unreachable(motion, resting, candidates);
       reduce_manifold(candidates, i, j, surfaces, motion, rule, part);
     }
