@@ -4,6 +4,7 @@
 
 #include <cstdlib>
 #include <map>
+#include <vector>
 
 #include "dynamics/isa.hpp"
 #include "output/compare.hpp"
@@ -26,10 +27,15 @@ test::Outcome with_kernel(const std::string& kernel, const std::string& args) {
 // expects their bins, products, crossings and the steps' solver figures
 // (iterations, residual, overlap: steps.csv but its timing columns) to the
 // byte.
+// A CPU with the baseline build alone has nothing to compare: skipped.
 void expect_same_bytes(const std::string& name, const std::string& args) {
+  std::vector<Isa> builds;
+  for (const Isa isa : {Isa::Baseline, Isa::Avx2, Isa::Avx512})
+    if (cpu_has(isa)) builds.push_back(isa);
+  if (builds.size() < 2)
+    GTEST_SKIP() << "this CPU runs one build of the kernel: nothing to compare";
   std::map<std::string, std::string> first;
-  for (const Isa isa : {Isa::Baseline, Isa::Avx2, Isa::Avx512}) {
-    if (!cpu_has(isa)) continue;
+  for (const Isa isa : builds) {
     const test::fs::path dir = test::fresh_dir(name + "_" + isa_name(isa));
     const test::Outcome r = with_kernel(isa_name(isa), args + " -q -o " + dir.string());
     ASSERT_EQ(r.code, 0) << r.err;
