@@ -483,6 +483,9 @@ TEST(Decay, Fr4RelaxationTimeIs39s) {
   EXPECT_NEAR(relaxation_time(kFr4Permittivity, 1e12), 39.0, 0.01 * 39.0);
 }
 
+// Each step multiplies by exp(-dt/τ): after 2000 steps the charge is the
+// closed form's to the rounding of 2000 products (1e-12 relative), where a
+// first-order step would be 0.16 % off. An infinite τ keeps the charge.
 TEST(Decay, StepsFollowExponential) {
   const double tau = relaxation_time(kFr4Permittivity, 1e12);
   const double q0 = -2e-12;
@@ -491,7 +494,7 @@ TEST(Decay, StepsFollowExponential) {
     q = decay_step(q, tau, 0.05);
     worst = std::max(worst, std::abs(q / (q0 * std::exp(-n * 0.05 / tau)) - 1.0));
   }
-  EXPECT_LT(worst, 0.01);
+  EXPECT_LT(worst, 1e-12);
   EXPECT_EQ(decay_step(q0, std::numeric_limits<double>::infinity(), 1.0), q0);
 }
 
