@@ -98,8 +98,10 @@ TEST(SeparatorScene, ReferenceMachineCompiles) {
   EXPECT_NEAR(b.foot_angle, 75 * kDeg, 1e-12);
   EXPECT_NEAR(b.height, 0.0501, 1e-9);
   EXPECT_NEAR(b.onset_field, fields::peek_onset_field(1e-4), 1e-6);
-  EXPECT_GT(b.onset_voltage, 8e3);
-  EXPECT_LT(b.onset_voltage, 20e3);
+  // docs/physics.md §4.2: 8.5 kV for the wire alone, 10.9 kV at 60° beside
+  // the static electrode at 30°, which shields it; at 75° it shields less.
+  EXPECT_GT(b.onset_voltage, 8.5e3);
+  EXPECT_LT(b.onset_voltage, 10.9e3);
   EXPECT_DOUBLE_EQ(b.current, fields::townsend_current(-35e3, b.onset_voltage, 1e-4, b.height, 2.1e-4));
   EXPECT_EQ(b.ion_sign, -1.0);
   EXPECT_DOUBLE_EQ(es.medium_relative_permittivity, 1.0006);
@@ -227,7 +229,10 @@ TEST(SeparatorScene, FeedShapesFromTheScene) {
   EXPECT_EQ(shape(0).centers.size(), 19u);
   const double d = mix[0].shape_size;
   EXPECT_NEAR(std::numbers::pi / 6 * d * d * d, shape(0).volume, 1e-12);
-  EXPECT_NEAR(2.0 * shape(0).bounding_radius / d, 1.87, 0.01);
+  // 19 touching spheres of radius r, a centre and two hexagonal rings:
+  // bounding radius 5 r, equal-volume diameter 2 r 19^(1/3) (1e-5: the
+  // union's volume is integrated numerically).
+  EXPECT_NEAR(2.0 * shape(0).bounding_radius / d, 5.0 / std::cbrt(19.0), 1e-5);
   EXPECT_EQ(shape(1).centers.size(), 3u);  // aspect 0.5: spheres at -0.25, 0, 0.25
   EXPECT_EQ(shape(2).centers.size(), 2u);
   EXPECT_NEAR(mix[2].shape_size, 1.5, 1e-6);  // a file's cluster: its bounding diameter
@@ -410,7 +415,10 @@ Overrides drum_speed(const std::string& rpm, const std::string& belt) {
 //  - voltage: less middling and better separation at 35 kV than at 20 kV
 //    (Wu, Li & Xu 2008);
 //  - size: the 0.6-1.2 mm sieve class separates better than the coarser
-//    measured flakes, 1.7-4.8 mm (Li, Xu & Zhou 2007).
+//    measured flakes, 1.7-4.8 mm (docs/validation.md: 96.8 against 77.5 %).
+//    Li, Xu & Zhou (2007) find 0.6-1.2 mm the most separable class of all;
+//    the model does not (1.2-2.4 mm separates as well, validation.md's
+//    "disagrees"), and that is not asserted.
 // The test prints each case's E. Tolerances, wide enough for another
 // seed's feed and narrow enough that a case without the trend's mechanism
 // fails them: E at least 60 % at the reference point, each failure side at

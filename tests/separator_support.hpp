@@ -74,8 +74,9 @@ double induced_charge(double r, double en);
 double lift_force(double r, double en);
 double image_pull(double q, double r);
 
-// The seed's corona zone, 80-100° from the top and 5 mm deep, charging to
-// saturation at once in 4.13 kV/cm (with space charge, docs/physics.md §5 table).
+// The seed's corona zone, within 10° of the top (80-100° counter-clockwise
+// from +x) and 5 mm deep, charging to saturation at once in 4.13 kV/cm
+// (docs/physics.md §5.5's table).
 CoronaZone saturation_zone();
 
 // A one-particle world gains nothing from threads, and the collider's
