@@ -47,6 +47,7 @@ TEST(Report, CarriesTheRunsFiguresFramesAndMachine) {
   EXPECT_EQ(frames.front()["t"], 0.0);
   EXPECT_NEAR(frames.back()["t"].get<double>(), 0.3, 1e-9);
   const std::size_t active = summary["balance"]["active"]["count"];
+  ASSERT_GT(active, 0u) << "the run's end leaves particles to draw";
   const std::size_t drawn = frames.back()["x"].size(), stride = (active + 1499) / 1500;
   EXPECT_LE(drawn, 1500u);
   EXPECT_GE(drawn, active / stride - 1);  // every stride-th id of those in the machine
