@@ -123,6 +123,7 @@ struct Launch {
   double radius;
   Vec3 position;
   Vec3 velocity;
+  double mass() const { return density * 4.0 / 3.0 * kPi * std::pow(radius, 3); }
 };
 
 // Landing x in the World: drag stage only, no bodies; linear interpolation
@@ -144,7 +145,7 @@ double world_landing(const Launch& l, DragLaw law, double step) {
 
 // Reference: classical RK4 on x'' = g + F_drag(v)/m at 1e-5 s.
 double ode_landing(const Launch& l, DragLaw law) {
-  const double mass = l.density * 4.0 / 3.0 * kPi * std::pow(l.radius, 3);
+  const double mass = l.mass();
   const Vec3 g(0, -kG, 0);
   const auto accel = [&](const Vec3& v) {
     const Vec3 f = law == DragLaw::Stokes ? stokes_drag(v, l.radius, Air{})
@@ -177,8 +178,7 @@ constexpr double kFlightStep = 5e-4;
 // y(t) = y0 + (vy + u) τ (1 − e^{−t/τ}) − u t. Past its top y falls
 // monotonically; the landing time is found there by bisection.
 double stokes_landing(const Launch& l) {
-  const double mass = l.density * 4.0 / 3.0 * kPi * std::pow(l.radius, 3);
-  const double tau = mass / (6.0 * kPi * Air{}.viscosity * l.radius), u = kG * tau;
+  const double tau = l.mass() / (6.0 * kPi * Air{}.viscosity * l.radius), u = kG * tau;
   const auto relaxed = [&](double t) { return tau * -std::expm1(-t / tau); };
   const auto y = [&](double t) {
     return l.position.y() + (l.velocity.y() + u) * relaxed(t) - u * t;
