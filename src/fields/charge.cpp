@@ -69,10 +69,14 @@ namespace {
 
 // The axisymmetric Laplace solve of a flake (radius a, thickness t = x a)
 // lying on a grounded plane in a uniform normal field E far above it
-// (cells down to a/500 at the rim and the faces, domain 30 a;
-// grid-converged to 0.1 %; tests/flake_laplace_test.cpp recomputes both
-// charge columns at x = 0.1, 0.4 and 1 on a coarser grid and asserts them
-// to 4 %, the pull columns are not recomputed there). Per row, x and:
+// (cells down to a/500 at the rim and the faces, domain 30 a).
+// tests/flake_laplace_test.cpp solves it again at x = 0.1, 0.4 and 1 on a
+// coarser grid and takes the pulls as the Maxwell stress over a surface
+// round the flake: the charges agree to 4 %, the insulator's image factor
+// (flake_image_factor) to 2 %; the conductor's lift is 3-6 % under the
+// stress integral, and the insulator's top pull about a fifth under it, a
+// part of at most 3 % of an FR-4 flake's pull (docs/physics.md, sections
+// 5.1 and 5.5, give what they move). Per row, x and:
 //  - insulator at Pauthenier saturation (zero normal field on the air side
 //    of its top and rim, so no field line ends there): the charge over the
 //    thin-plate Q_s; the pull over its thin-plate limit εr² ε0 E² a⁴/(π t²),
