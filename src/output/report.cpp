@@ -113,14 +113,30 @@ void frames_json(const CrossSection& section, std::ostringstream& out) {
 
 }  // namespace
 
-CrossSection::CrossSection(const Simulation& sim)
-    : every_(std::max(sim.end_time / (kFrames - 1), sim.model->step)), step_(sim.model->step) {}
+CrossSection::CrossSection(double step) : every_(step), step_(step) {}
 
 void CrossSection::observe(const State& state) {
   // Due at frames_.size() * every_, within half a step of rounding.
   if (state.time + 0.5 * step_ < double(frames_.size()) * every_) return;
+  frames_.push_back(frame(state));
+  if (frames_.size() == 2 * std::size_t(kFrames)) thin();
+}
+
+void CrossSection::finish(const State& state) {
+  if (frames_.empty() || state.time > frames_.back().time + 0.5 * step_)
+    frames_.push_back(frame(state));
+}
+
+// Every other frame, from the first, at twice the interval.
+void CrossSection::thin() {
+  for (std::size_t k = 0; 2 * k < frames_.size(); ++k) frames_[k] = std::move(frames_[2 * k]);
+  frames_.resize((frames_.size() + 1) / 2);
+  every_ *= 2.0;
+}
+
+CrossSection::Frame CrossSection::frame(const State& state) const {
   const Particles& p = state.particles;
-  const std::size_t budget = kPoints / kFrames;
+  const std::size_t budget = kPoints / (2 * kFrames);
   const std::uint64_t stride = p.size() <= budget ? 1 : (p.size() + budget - 1) / budget;
   Frame f;
   f.time = state.time;
@@ -131,10 +147,11 @@ void CrossSection::observe(const State& state) {
     f.material.push_back(p.material[i]);
     f.charge.push_back(float(p.charge[i] + p.metal_charge[i]));
   }
-  frames_.push_back(std::move(f));
+  return f;
 }
 
 void CrossSection::save(ByteWriter& out) const {
+  out.value(every_);
   out.value(std::uint64_t(frames_.size()));
   for (const Frame& f : frames_) {
     out.value(f.time);
@@ -146,8 +163,10 @@ void CrossSection::save(ByteWriter& out) const {
 }
 
 void CrossSection::load(ByteReader& in) {
+  in.value(every_);
+  if (!(every_ >= step_)) throw CorruptData("an animation interval shorter than the step");
   const auto n = in.value<std::uint64_t>();
-  if (n > std::uint64_t(kFrames) + 1) throw CorruptData("more animation frames than a run makes");
+  if (n > 2 * std::uint64_t(kFrames)) throw CorruptData("more animation frames than a run keeps");
   frames_.resize(std::size_t(n));
   for (Frame& f : frames_) {
     in.value(f.time);

@@ -15,17 +15,25 @@
 namespace ces::output {
 
 // The animation's frames: the particles' centres projected on the cross
-// section (x, y; the drum's axis is z), sampled at kFrames times over the
-// run. Past kPoints points in all, a frame keeps the particles whose id is a
-// multiple of a stride, so the page stays a few megabytes whatever the run.
+// section (x, y; the drum's axis is z), evenly spaced over the run however
+// long it turns out (a run until its particles are collected ends before
+// time.end): a frame every `every_`, from one a step; whenever the frames
+// reach 2 kFrames, every other one goes and `every_` doubles. So a run of
+// more than kFrames steps keeps kFrames to 2 kFrames - 1 of them, and the
+// run's last state as one more (finish). Past kPoints points in all, a
+// frame keeps the particles whose id is a multiple of a stride, so the
+// page stays a few megabytes whatever the run.
 class CrossSection {
  public:
   static constexpr int kFrames = 100;
-  static constexpr std::size_t kPoints = 150000;
+  static constexpr std::size_t kPoints = 300000;
 
-  CrossSection(const Simulation& sim);
+  explicit CrossSection(double step);
   // Records a frame if one is due at state.time.
   void observe(const State& state);
+  // The run's last state, once the run has ended: a frame after the evenly
+  // spaced ones unless the last of them is it.
+  void finish(const State& state);
 
   struct Frame {
     double time = 0.0;
@@ -39,6 +47,9 @@ class CrossSection {
   void load(ByteReader& in);
 
  private:
+  Frame frame(const State& state) const;
+  void thin();
+
   double every_, step_;
   std::vector<Frame> frames_;
 };

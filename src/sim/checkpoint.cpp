@@ -12,7 +12,7 @@ namespace {
 
 // The head's first bytes, with the format's version: a checkpoint from
 // another version of the format is refused, never misread.
-constexpr std::string_view kMagic = "ces-sim checkpoint 8\n";
+constexpr std::string_view kMagic = "ces-sim checkpoint 9\n";
 
 // The last 8 bytes: FNV-1a of all before them. A change confined to one
 // byte always changes it (each step of the hash is a bijection of its

@@ -125,7 +125,7 @@ class Observers : public StepObserver {
         collected_(sim, dir, start),
         trajectories_(dir, sim, shape_sizes(sim), start),
         energy_(sim, world.state()),
-        section_(sim) {}
+        section_(sim.model->step) {}
 
   void after(Stage stage, const World& world) override { energy_.after(stage, world.state()); }
 
@@ -146,6 +146,7 @@ class Observers : public StepObserver {
     trajectories_.observe(world.state());
     section_.observe(world.state());
   }
+  void finish(const World& world) { section_.finish(world.state()); }  // the run's last state
   void close() {
     steps_.close();
     collected_.close();
@@ -433,6 +434,7 @@ void Runner::write_outputs() {
   r.wall = wall();
   output::add_warnings(r);
   try {
+    observers_.finish(world_);
     write_report(r, distribution);
   } catch (const std::exception& e) {
     failed(e);
