@@ -3,6 +3,10 @@
 // it in Report.RendersInChromium (tests/report_in_browser.sh).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <fstream>
+#include <sstream>
+
 #include "output/report.hpp"
 #include "output/report_page.hpp"
 #include "support.hpp"
@@ -75,6 +79,55 @@ TEST(Report, FramesResumeFromACheckpoint) {
   resumed.finish(state);
   for (const output::CrossSection::Frame& f : resumed.frames()) times.push_back(f.time);
   EXPECT_EQ(times, expected);
+}
+
+// A mixed particle (a PCB fragment with metal in it) on the drum carries
+// two charges, its metal part's and its insulating part's: every output
+// gives their sum. The last frame of the report and of trajectories.csv,
+// both at the run's end, hold the same charges (sorted: the report's
+// frames carry no ids).
+TEST(Report, AMixedParticlesChargeIsTheSameInEveryOutput) {
+  const test::fs::path dir = test::fresh_dir("mixed_charge");
+  std::ofstream(dir / "mixed.yaml")
+      << "ces_sim: 1\n"
+         "include: " CES_SOURCE_DIR
+         "/scenes/machines/ces_machine.yaml\n"
+         "time: {step: 0.5 ms, end: 0.12 s, until: end}\n"
+         "gravity: [0, -9.81 m/s^2, 0]\n"
+         "materials:\n"
+         "  pcb: {density: 2500, metal_fraction: 0.3,\n"
+         "        relative_permittivity: 4.4, charge_decay_time: 20 s}\n"
+         "feeds:\n"
+         "  - name: f\n"
+         "    region: {box: {min: [-0.01, 0.165, -0.01],\n"
+         "                   max: [0.01, 0.17, 0.01]}}\n"
+         "    rate: 500 /s\n"
+         "    duration: 0.02 s\n"
+         "    mix: [{material: pcb, size: {constant: 1 mm}}]\n"
+         "output: {trajectories: {every: 0.12 s, format: csv}}\n";
+  const test::Outcome r =
+      test::ces_sim((dir / "mixed.yaml").string() + " -q -o " + (dir / "out").string() +
+                    " --include-path " CES_SOURCE_DIR "/scenes");
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::vector<double> report, csv;
+  const nlohmann::json frames = test::report_data(dir / "out" / "report.html")["frames"];
+  ASSERT_NEAR(frames.back()["t"].get<double>(), 0.12, 1e-9);
+  for (const auto& q : frames.back()["q"]) report.push_back(q.get<double>());
+  std::istringstream lines(test::read_text(dir / "out" / "trajectories.csv"));
+  std::string line;
+  std::getline(lines, line);  // the header: charge_c is the 12th column
+  while (std::getline(lines, line)) {
+    std::vector<std::string> cells;
+    std::istringstream row(line);
+    for (std::string cell; std::getline(row, cell, ',');) cells.push_back(cell);
+    if (std::stod(cells[0]) > 0.12 - 1e-9) csv.push_back(std::stod(cells[11]));
+  }
+  ASSERT_FALSE(csv.empty());
+  ASSERT_EQ(report.size(), csv.size());
+  std::sort(report.begin(), report.end());
+  std::sort(csv.begin(), csv.end());
+  for (std::size_t k = 0; k < csv.size(); ++k)
+    EXPECT_NEAR(report[k], csv[k], 1e-6 * std::abs(csv[k])) << k;
 }
 
 // The reference scene for 0.3 s: the page carries summary.json's figures,

@@ -138,7 +138,7 @@ bool Collection::try_collect(const Particles& p, std::size_t i, double t_end, do
   k.along = axes_[std::size_t(hit)].dot(k.position);
   k.diameter = particle_diameter(shape_size_, p, i);
   k.mass = p.mass[i];
-  k.charge = p.charge[i];
+  k.charge = particle_charge(p, i);
   k.material = p.material[i];
   k.collector = hit;
   k.bin = bin_of(c, k.along);

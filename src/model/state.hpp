@@ -71,6 +71,12 @@ inline double particle_diameter(const std::vector<double>& shape_size, const Par
   return p.scale[i] * shape_size[std::size_t(p.shape[i])];
 }
 
+// Particle i's charge as the outputs give it: a mixed particle's two
+// parts together.
+inline double particle_charge(const Particles& p, std::size_t i) {
+  return p.charge[i] + p.metal_charge[i];
+}
+
 // Every per-particle array, listed once for the operations on all of them.
 inline constexpr auto kParticleArrays = std::tuple{
     &Particles::id,       &Particles::shape,    &Particles::scale,       &Particles::material,

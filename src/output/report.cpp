@@ -145,7 +145,7 @@ CrossSection::Frame CrossSection::frame(const State& state) const {
     f.x.push_back(tenth_mm(p.position[i].x()));
     f.y.push_back(tenth_mm(p.position[i].y()));
     f.material.push_back(p.material[i]);
-    f.charge.push_back(float(p.charge[i] + p.metal_charge[i]));
+    f.charge.push_back(float(particle_charge(p, i)));
   }
   return f;
 }

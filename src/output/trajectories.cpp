@@ -194,8 +194,11 @@ std::string TrajectoryWriter::particles_vtp(const State& state) const {
   const Particles& p = state.particles;
   const std::vector<std::size_t>& o = order_;
   constexpr VtkSection point = VtkSection::PointData;
-  std::vector<double> diameters;
-  for (const std::size_t i : o) diameters.push_back(particle_diameter(shape_size_, p, i));
+  std::vector<double> diameters, charges;
+  for (const std::size_t i : o) {
+    diameters.push_back(particle_diameter(shape_size_, p, i));
+    charges.push_back(particle_charge(p, i));
+  }
   VtpFile f(o.size());
   f.add(VtkSection::Field, "TimeValue", 1, std::vector<double>{state.time});
   f.add_strings(VtkSection::Field, "material_names", material_names_);
@@ -211,7 +214,7 @@ std::string TrajectoryWriter::particles_vtp(const State& state) const {
   f.add(point, "orientation", 4, pick(o, p.orientation));
   f.add(point, "velocity", 3, pick(o, p.velocity));
   f.add(point, "angular_velocity", 3, pick(o, p.angular_velocity));
-  f.add(point, "charge", 1, pick(o, p.charge));
+  f.add(point, "charge", 1, charges);
   f.add(point, "birth", 1, pick(o, p.birth));
   f.add(VtkSection::Points, "position", 3, pick(o, p.position));
   f.add_vertex_per_point();
@@ -235,7 +238,7 @@ std::string TrajectoryWriter::spheres_vtp(const State& state) const {
       ids.push_back(p.id[i]);
       materials.push_back(p.material[i]);
       names.push_back(material_names_[std::size_t(p.material[i])]);
-      charges.push_back(float(p.charge[i]));
+      charges.push_back(float(particle_charge(p, i)));
     }
   }
   VtpFile f(ids.size());
@@ -308,7 +311,7 @@ void TrajectoryWriter::append_csv(const State& state) {
     row << state.time << p.id[i] << p.position[i].x() << p.position[i].y() << p.position[i].z()
         << p.velocity[i].x() << p.velocity[i].y() << p.velocity[i].z()
         << particle_diameter(shape_size_, p, i) << material_names_[std::size_t(p.material[i])]
-        << shape_names_[std::size_t(p.shape[i])] << p.charge[i] << p.orientation[i].w()
+        << shape_names_[std::size_t(p.shape[i])] << particle_charge(p, i) << p.orientation[i].w()
         << p.orientation[i].x() << p.orientation[i].y() << p.orientation[i].z()
         << p.angular_velocity[i].x() << p.angular_velocity[i].y() << p.angular_velocity[i].z()
         << p.birth[i];
