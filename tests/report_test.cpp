@@ -130,6 +130,27 @@ TEST(Report, AMixedParticlesChargeIsTheSameInEveryOutput) {
     EXPECT_NEAR(report[k], csv[k], 1e-6 * std::abs(csv[k])) << k;
 }
 
+// A name with markup in it stays text: the page's data holds no '<' (a
+// "<!--" there would keep the browser from finding the data's end) and
+// reads back as the name.
+TEST(Report, MarkupInANameStaysInTheData) {
+  const test::fs::path dir = test::fresh_dir("markup");
+  std::string scene = test::read_text(std::string(CES_SOURCE_DIR) + "/scenes/default.yaml");
+  const std::string name = "<!--<script></script>";
+  scene.replace(scene.find("name: default"), 13, "name: '" + name + "'");
+  std::ofstream(dir / "markup.yaml") << scene;
+  const test::Outcome r = test::ces_sim((dir / "markup.yaml").string() +
+                                        " --set time.end=0.01s -q -o " + (dir / "out").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string page = test::read_text(dir / "out" / "report.html");
+  const std::string open = "<script type=\"application/json\" id=\"data\">";
+  const std::size_t start = page.find(open) + open.size();
+  const std::size_t end = page.find("</script>", start);
+  ASSERT_NE(end, std::string::npos);
+  EXPECT_EQ(page.substr(start, end - start).find('<'), std::string::npos);
+  EXPECT_EQ(test::report_data(dir / "out" / "report.html")["summary"]["scene"]["name"], name);
+}
+
 // The reference scene for 0.3 s: the page carries summary.json's figures,
 // the machine (drum, brush, wire, electrode, splitters, the collector's plane),
 // 100 to 199 frames from t = 0 to the end whose last one holds every particle

@@ -12,13 +12,17 @@ namespace {
 
 std::int32_t tenth_mm(double metres) { return std::int32_t(std::lround(metres * 1e4)); }
 
-// Text inside <script>: a "</" would end the element.
-std::string script_safe(const std::string& text) {
+// JSON inside <script>: a "</" would end the element, and a "<!--" would
+// keep the HTML parser from seeing its end. JSON has '<' only inside its
+// strings, where \u003c stands for it: none is left for the parser.
+std::string script_safe(const std::string& json) {
   std::string out;
-  out.reserve(text.size());
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    out += text[i];
-    if (text[i] == '<' && i + 1 < text.size() && text[i + 1] == '/') out += '\\';
+  out.reserve(json.size());
+  for (const char c : json) {
+    if (c == '<')
+      out += "\\u003c";
+    else
+      out += c;
   }
   return out;
 }
