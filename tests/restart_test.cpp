@@ -5,6 +5,7 @@
 // that completes removes only the files the earlier run wrote; a file that
 // cannot be written is named in summary.json.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -286,6 +287,19 @@ TEST(Restart, ResumeRefusesAMissingOrDamagedCheckpoint) {
   const Outcome missing = ces_sim("resume " + none.string());
   EXPECT_EQ(missing.code, 2);
   EXPECT_NE(missing.err.find("no checkpoint"), std::string::npos) << missing.err;
+
+  // A folder or a pipe in its place is not opened (a pipe would be waited
+  // on for ever).
+  const fs::path odd = none / "partial" / "checkpoint.bin";
+  fs::create_directories(odd);
+  const Outcome folder = ces_sim("resume " + none.string());
+  EXPECT_EQ(folder.code, 2);
+  EXPECT_NE(folder.err.find("not a regular file"), std::string::npos) << folder.err;
+  fs::remove(odd);
+  ASSERT_EQ(::mkfifo(odd.c_str(), 0600), 0);
+  const Outcome pipe = ces_sim("resume " + none.string());
+  EXPECT_EQ(pipe.code, 2);
+  EXPECT_NE(pipe.err.find("not a regular file"), std::string::npos) << pipe.err;
 
   const fs::path dir = fresh_dir("damaged");
   ASSERT_TRUE(kill_after_first_checkpoint(dir, std::chrono::milliseconds(0)));

@@ -46,6 +46,11 @@ void write_checkpoint(const std::filesystem::path& file, const Checkpoint& c) {
 namespace {
 
 std::string read_all(const std::filesystem::path& file) {
+  // A pipe would be waited on for ever, a folder's size is read as an
+  // exabyte: neither is opened.
+  std::error_code error;
+  if (std::filesystem::exists(file, error) && !std::filesystem::is_regular_file(file, error))
+    throw output::IoError("the checkpoint " + file.string() + " is not a regular file");
   std::ifstream in(file, std::ios::binary | std::ios::ate);
   if (!in) throw output::IoError("no checkpoint at " + file.string());
   std::string bytes(std::size_t(in.tellg()), '\0');
