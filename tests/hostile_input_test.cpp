@@ -490,3 +490,46 @@ TEST(HostileSemantics, FeedRegionPartlyInsideABodyIsAccepted) {
 
 }  // namespace
 }  // namespace ces::scene
+
+namespace ces {
+namespace {
+
+// A checkpoint edited on purpose keeps a valid checksum (anyone can make
+// one): what it holds is checked against the scene before a step reads it.
+TEST(HostileCheckpoints, AStateUnlikeTheSceneIsRefused) {
+  const Simulation sim = scene::load(std::string(CES_SOURCE_DIR) + "/scenes/default.yaml");
+  const Model& model = *sim.model;
+  const auto& materials = model.materials.materials();
+  const int copper = int(std::find_if(materials.begin(), materials.end(),
+                                      [](const Material& m) { return m.name == "copper"; }) -
+                         materials.begin());
+  ASSERT_LT(std::size_t(copper), materials.size());
+  auto refused = [&](auto edit) -> std::string {
+    State state;
+    init_state(model, state);
+    add_particle(model, state, 0, 1.0, copper, Vec3(0.0, 0.3, 0.0));
+    edit(state.particles);
+    try {
+      check_loaded(model, state);
+    } catch (const CorruptData& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_EQ(refused([](Particles&) {}), "");
+  EXPECT_NE(refused([](Particles& p) { p.shape[0] = 1000000; }).find("its shape"),
+            std::string::npos);
+  EXPECT_NE(refused([](Particles& p) { p.shape[0] = -5; }).find("its shape"), std::string::npos);
+  EXPECT_NE(refused([](Particles& p) { p.material[0] = 1000000; }).find("its material"),
+            std::string::npos);
+  EXPECT_NE(refused([](Particles& p) { p.carrier[0] = 99; }).find("carrying"), std::string::npos);
+  EXPECT_NE(refused([](Particles& p) { p.position[0].x() = std::nan(""); }).find("its motion"),
+            std::string::npos);
+  EXPECT_NE(refused([](Particles& p) { p.orientation[0].coeffs().setZero(); }).find("its motion"),
+            std::string::npos);
+  EXPECT_NE(refused([](Particles& p) { p.mass[0] = -1.0; }).find("mass"), std::string::npos);
+  EXPECT_NE(refused([](Particles& p) { p.scale[0] = 0.0; }).find("size"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace ces

@@ -1,5 +1,8 @@
 #include "model/state.hpp"
 
+#include <cmath>
+#include <string>
+
 namespace ces {
 
 void Particles::push(std::uint64_t new_id, int shape_index, double size_scale,
@@ -99,6 +102,39 @@ void load(ByteReader& in, State& s) {
   load(in, s.impulses);
   in.values(s.row_impulses);
   load(in, s.springs);
+}
+
+namespace {
+
+bool finite(const Vec3& v) { return v.allFinite(); }
+
+// What is wrong with particle i of a state read back, or null.
+const char* unlike_model(const Model& model, const Particles& p, std::size_t i) {
+  if (p.shape[i] < 0 || std::size_t(p.shape[i]) >= model.shapes.size()) return "its shape";
+  if (p.material[i] < 0 || std::size_t(p.material[i]) >= model.materials.materials().size())
+    return "its material";
+  if (p.carrier[i] != Particles::kAwake &&
+      (p.carrier[i] < 0 || std::size_t(p.carrier[i]) >= model.bodies.size()))
+    return "the body carrying it";
+  if (!finite(p.position[i]) || !finite(p.velocity[i]) || !finite(p.angular_velocity[i]) ||
+      !p.orientation[i].coeffs().allFinite() || std::abs(p.orientation[i].norm() - 1.0) > 1e-6)
+    return "its motion";
+  if (!(p.mass[i] > 0.0) || !std::isfinite(p.mass[i]) || !(p.scale[i] > 0.0) ||
+      !std::isfinite(p.scale[i]))
+    return "its mass or size";
+  return nullptr;
+}
+
+}  // namespace
+
+void check_loaded(const Model& model, const State& state) {
+  const Particles& p = state.particles;
+  for (std::size_t i = 0; i < p.size(); ++i)
+    if (const char* what = unlike_model(model, p, i))
+      throw CorruptData("particle " + std::to_string(p.id[i]) + ": " + what +
+                        " is not one this scene can have");
+  if (state.bodies.pose.size() != model.bodies.size())
+    throw CorruptData("the machine's bodies have changed");
 }
 
 void init_state(const Model& model, State& state) {

@@ -125,6 +125,11 @@ struct State {
 // steps on to the same bits as the one written.
 void save(ByteWriter& out, const State& state);
 void load(ByteReader& in, State& state);
+// Throws CorruptData where a state read back cannot be this model's: an
+// index past its shapes, materials or bodies, a particle not finite or
+// without mass. A checksum does not stop a file edited on purpose, and
+// the step would read past an array.
+void check_loaded(const Model& model, const State& state);
 
 // The state at t = 0: the bodies at their initial pose and velocity, no
 // particles.

@@ -101,8 +101,7 @@ void World::save(ByteWriter& out) const {
 
 void World::load(ByteReader& in) {
   ces::load(in, state_);
-  if (state_.bodies.pose.size() != model_->bodies.size())
-    throw CorruptData("the machine's bodies have changed");
+  check_loaded(*model_, state_);
   for (feed::Feeder& f : feeders_) f.load(in);
   if (collection_) collection_->load(in);
 }
