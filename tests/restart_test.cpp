@@ -4,7 +4,9 @@
 // a run that does not finish never touches an earlier complete run; a run
 // that completes removes only the files the earlier run wrote; a file that
 // cannot be written is named in summary.json.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -173,6 +175,23 @@ TEST(Restart, AnUnfinishedRunLeavesTheEarlierCompleteRunIntact) {
   EXPECT_EQ(read_text(dir / "summary.json"), summary);
   EXPECT_EQ(read_text(dir / "trajectories" / "frame_custom.vtp"), "mine");
   EXPECT_TRUE(fs::exists(dir / "trajectories" / "frame_000000.vtp"));
+}
+
+// While a run holds its folder (here the test holds it, as a run does),
+// another run into it is refused before it clears the first one's
+// partial/.
+TEST(Restart, ARunIntoAFolderInUseIsRefused) {
+  const fs::path dir = fresh_dir("in_use");
+  fs::create_directories(dir / "partial");
+  std::ofstream(dir / "partial" / "steps.csv") << "the other run's";
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
+  ASSERT_EQ(::flock(fd, LOCK_EX | LOCK_NB), 0);
+  const Outcome second = ces_sim(kTiny + " -o " + dir.string() + " --quiet");
+  EXPECT_EQ(second.code, 3);
+  EXPECT_NE(second.err.find("another ces-sim run is writing in"), std::string::npos) << second.err;
+  EXPECT_EQ(read_text(dir / "partial" / "steps.csv"), "the other run's");
+  ::close(fd);
+  EXPECT_EQ(ces_sim(kTiny + " -o " + dir.string() + " --quiet").code, 0);
 }
 
 // The earlier run wrote frames; the new one writes none: its frames go, a

@@ -8,7 +8,8 @@
 // signal, an error, a full disk, a kill) leaves DIR as it was, with an
 // earlier complete run intact, and its own files in DIR/partial, where
 // summary.json says why it stopped and `ces-sim resume DIR` finds its
-// checkpoint.
+// checkpoint. One run at a time writes in DIR: another one's start is
+// refused while it holds the folder (it would clear DIR/partial under it).
 #pragma once
 #include <filesystem>
 #include <string>
@@ -21,8 +22,12 @@ namespace ces {
 class OutputFolder {
  public:
   // Fresh: removes what an earlier unfinished run left in DIR/partial.
-  // Resume: keeps it, to continue.
+  // Resume: keeps it, to continue. Throws output::IoError while another
+  // run holds DIR.
   OutputFolder(std::filesystem::path dir, output::Start start);
+  ~OutputFolder();
+  OutputFolder(const OutputFolder&) = delete;
+  OutputFolder& operator=(const OutputFolder&) = delete;
 
   const std::filesystem::path& dir() const { return dir_; }
   // Where the run writes while it runs.
@@ -35,6 +40,7 @@ class OutputFolder {
 
  private:
   std::filesystem::path dir_, work_;
+  int lock_ = -1;  // DIR opened and locked (flock) while the run lives
 };
 
 }  // namespace ces
