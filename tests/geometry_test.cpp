@@ -364,6 +364,35 @@ TEST(GeometryMesh, LoadFailuresNameTheFile) {
   EXPECT_EQ(load_error(cube, 0.0).rfind(cube + ": ", 0), 0u) << load_error(cube, 0.0);
 }
 
+// Files made to stop the reader or exhaust the process: a PLY whose header
+// promises more than it holds (assimp asserts), and headers of a few bytes
+// promising half a billion vertices. Each is an error naming the file, not
+// a crash, at once.
+TEST(GeometryMesh, HostileHeadersAreErrorsNotCrashes) {
+  const ScratchDir dir;
+  const std::string header =
+      "ply\nformat ascii 1.0\nelement vertex COUNT\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+      "0 0 0\n";
+  auto ply = [&](const std::string& name, const std::string& count) {
+    std::string text = header;
+    text.replace(text.find("COUNT"), 5, count);
+    const std::string path = dir.file(name);
+    write_file(path, text);
+    return path;
+  };
+  const std::string short_of = ply("short.ply", "3");
+  EXPECT_NE(load_error(short_of).find(short_of + ": its reader stopped"), std::string::npos)
+      << load_error(short_of);
+  const std::string bomb = ply("bomb.ply", "500000000");
+  EXPECT_NE(load_error(bomb).find(bomb + ": it needs more memory"), std::string::npos)
+      << load_error(bomb);
+  const std::string off = dir.file("bomb.off");
+  write_file(off, "OFF\n500000000 1 0\n0 0 0\n");
+  EXPECT_NE(load_error(off).find(off + ": it needs more memory"), std::string::npos)
+      << load_error(off);
+}
+
 // (n+1)^2 grid vertices spanning [0, n]^2 at z = 0, mapped by `place`; each
 // cell is split along alternating diagonals so vertices have 4 or 8 triangles.
 template <class Place>
