@@ -241,5 +241,28 @@ TEST(Drag, ClusterUsesEquivalentSphere) {
   EXPECT_LT((force - expected).norm(), 1e-12 * expected.norm());
 }
 
+// Settling under Stokes drag from rest: semi-implicit Euler's fixed point
+// is the terminal speed g τ (τ = m / 6πηr) exactly. A 10 µm PVC grain has
+// τ = 0.42 ms: at a step of 0.1 ms it settles at g τ; at 1 ms the explicit
+// drag would turn it round further each step, and held to stopping it
+// against the air it settles at g h instead, each such step counted. 1e-9
+// relative.
+TEST(Drag, AStepAboveTheRelaxationTimeSettlesBounded) {
+  const double density = 1380.0, radius = 5e-6;
+  const double tau =
+      density * 4.0 / 3.0 * kPi * std::pow(radius, 3) / (6.0 * kPi * Air{}.viscosity * radius);
+  for (const double step : {1e-4, 1e-3}) {
+    auto m = make_model(step, {{density, 0.5, ElectricalMaterial::insulator(3.0)}});
+    World w(m);
+    w.add_particle(kSphere, radius, 1, Vec3::Zero(), Quat::Identity(), Vec3::Zero());
+    w.set_drag({Air{}, DragLaw::Stokes});
+    std::size_t held = 0;
+    for (int k = 0; k < 400; ++k) held += w.step().drag_held;
+    const double speed = -w.particles().velocity[0].y(), expected = kG * std::max(tau, step);
+    EXPECT_NEAR(speed, expected, 1e-9 * expected) << step;
+    EXPECT_EQ(held, step > tau ? 399u : 0u) << step;  // every step but the first, from rest
+  }
+}
+
 }  // namespace
 }  // namespace ces::fields

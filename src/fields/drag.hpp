@@ -28,7 +28,9 @@ class DragStage {
  public:
   // Throws std::invalid_argument for a non-positive viscosity or density.
   DragStage(DragSpec spec, const Model& model);
-  void apply(Particles& particles) const;
+  // Adds each particle's drag for a step of h; returns how many had it
+  // held to stopping them against the air within the step (see drag.cpp).
+  std::size_t apply(Particles& particles, double h) const;
 
  private:
   DragSpec spec_;

@@ -76,6 +76,9 @@ struct StepStats {
   // Particles stopped at a wall their step would have crossed beyond the
   // envelope their contacts were listed within (dynamics/unlisted_walls.hpp).
   std::size_t unlisted_wall_stops = 0;
+  // Particles whose drag would have turned them round against the air
+  // within the step, held to stopping them (fields/drag.cpp).
+  std::size_t drag_held = 0;
   // DEM only: the smallest particle's Rayleigh time (s; 0 under DVI), and
   // whether the step exceeds 20 % of it (explicit contact is then unreliable).
   double rayleigh_time = 0.0;

@@ -52,6 +52,7 @@ void StepLog::record(const StepStats& s) {
   sum_.sliding_releases += s.sliding_releases;
   sum_.spin_limited += s.spin_limited;
   sum_.unlisted_wall_stops += s.unlisted_wall_stops;
+  sum_.drag_held += s.drag_held;
   sum_.max_joint_drift = std::max(sum_.max_joint_drift, s.joint_drift);
   if (s.rayleigh_time > 0.0) sum_.rayleigh_time_min = std::min(sum_.rayleigh_time_min, s.rayleigh_time);
   if (s.step_above_rayleigh_limit) ++sum_.steps_above_rayleigh_limit;

@@ -37,6 +37,8 @@ struct SolverSummary {
   std::uint64_t sliding_releases = 0;  // bodies released from their lift, summed over steps
   std::uint64_t spin_limited = 0;      // clumps in contact whose spin was capped, summed over steps
   std::uint64_t unlisted_wall_stops = 0;  // particles stopped at unlisted walls, summed over steps
+  std::uint64_t drag_held =
+      0;  // particles whose drag was held (fields/drag.cpp), summed over steps
   double max_joint_drift = 0.0;  // m
   // DEM: the smallest Rayleigh time met (s; inf: none, e.g. under DVI) and
   // the steps longer than 20 % of that step's Rayleigh time.

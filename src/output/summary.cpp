@@ -111,6 +111,7 @@ Json solver_json(const RunRecord& r) {
           {"sliding_releases", s.sliding_releases},
           {"spin_limited", s.spin_limited},
           {"unlisted_wall_stops", s.unlisted_wall_stops},
+          {"drag_held", s.drag_held},
           {"joint_drift_max_m", s.max_joint_drift},
           {"particles_max", s.max_particles},
           {"contacts_max", s.max_contacts},
@@ -283,6 +284,12 @@ void add_warnings(RunRecord& r) {
          "): consider a smaller time step or a higher max_iterations");
   if (s.steps_above_rayleigh_limit > 0)
     warn(rayleigh_warning(r.sim->model->step, s.rayleigh_time_min, s.steps_above_rayleigh_limit));
+  if (s.drag_held > 0)
+    warn("drag: the step (" + g3(r.sim->model->step) +
+         " s) is above the drag relaxation time of some particles (" + std::to_string(s.drag_held) +
+         " particle-steps): their drag was held to stopping them against the air in a step, "
+         "so they settle at g times the step instead of their terminal speed; take a smaller "
+         "time step");
   const EnergyBalance& e = r.energy;
   if (e.not_passive.empty() && e.max_gain_relative() > kEnergyGainWarning)
     warn("energy grew without a source by up to " + g3(e.max_gain) + " J (" +

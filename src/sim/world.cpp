@@ -74,7 +74,7 @@ const StepStats& World::step(StepObserver* observer) {
   stage(Stage::Feed, [&] { feed(); });
   stage(Stage::Broadphase, [&] { broadphase(); });
   stage(Stage::Narrowphase, [&] { narrowphase(); });
-  stage(Stage::Forces, [&] { forces(); });
+  stage(Stage::Forces, [&] { forces(stats); });
   stage(Stage::Assemble, [&] { dynamics_.assemble(m, state_, contacts_, stats); });
   stage(Stage::Solve, [&] { dynamics_.solve(m, stats); });
   stage(Stage::Safeguards,
@@ -123,14 +123,14 @@ void World::narrowphase() {
 }
 
 // The force stages add to the particles' and bodies' forces, cleared first.
-void World::forces() {
+void World::forces(StepStats& stats) {
   Particles& p = state_.particles;
   Bodies& b = state_.bodies;
   std::fill(p.force.begin(), p.force.end(), Vec3::Zero());
   std::fill(p.torque.begin(), p.torque.end(), Vec3::Zero());
   std::fill(b.force.begin(), b.force.end(), Vec3::Zero());
   std::fill(b.torque.begin(), b.torque.end(), Vec3::Zero());
-  if (drag_) drag_->apply(p);
+  if (drag_) stats.drag_held = drag_->apply(p, model_->step);
   if (electrostatics_) electrostatics_->apply(*model_, contacts_, b, p);
 }
 

@@ -109,7 +109,7 @@ class World {
   void feed();
   void broadphase();
   void narrowphase();
-  void forces();
+  void forces(StepStats& stats);
   void integrate(StepStats& stats);
   void collect();
 
