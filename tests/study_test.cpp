@@ -176,6 +176,14 @@ TEST(Study, ErrorsShrinkWithTheStepAndTheReferenceIsExact) {
   ASSERT_EQ(again.code, 0) << again.err;
   EXPECT_NE(again.out.find("the feed's sampling at the reference: not known"), std::string::npos)
       << again.out;
+
+  // A reference that is not a run's folder is refused before any case runs.
+  const path none = test::fresh_dir("study_no_reference");
+  const test::Outcome refused = test::ces_sim("study " + kScene + kSteps + " -o " + none.string() +
+                                              " --reference " + (none / "missing").string());
+  EXPECT_EQ(refused.code, 2);
+  EXPECT_NE(refused.err.find("no crossings.csv"), std::string::npos) << refused.err;
+  EXPECT_FALSE(test::fs::exists(none / "case_0"));
 }
 
 // A study of tolerances at one step: the reference is the tightest case,

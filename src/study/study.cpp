@@ -672,7 +672,17 @@ std::string list_cases(const Options& o) {
   return text;
 }
 
+// A reference named on the command line is read once every case has run:
+// its files are looked for first, so a wrong path costs no runs.
+void check_reference(const fs::path& reference) {
+  for (const char* file : {"crossings.csv", "products.csv"})
+    if (!fs::is_regular_file(reference / file))
+      throw std::invalid_argument("--reference " + reference.string() + ": no " + file +
+                                  ", expected the output folder of a complete run");
+}
+
 int run(const Options& o) {
+  if (!o.reference.empty()) check_reference(o.reference);
   if (o.scheduler == Scheduler::Slurm) return write_slurm(o);
   if (o.scheduler == Scheduler::Parallel && !o.only_case && !run_with_parallel(o)) return 3;
   const std::vector<Case> cases = make_cases(o.axes);
