@@ -497,6 +497,27 @@ TEST(Cli, CompareAgreesOnEqualRunsAndDiffersAcrossSeeds) {
             0);
 }
 
+// The tables of a run that stopped, or whose summary.json is gone, are
+// compared as they are, and the comparison says what they are.
+TEST(Cli, CompareSaysWhichRunsDidNotComplete) {
+  const fs::path& a = tiny_run("formats");
+  const fs::path stopped = fresh_dir("compare_stopped");
+  for (const char* name : {"bins.csv", "products.csv", "crossings.csv"})
+    fs::copy_file(a / name, stopped / name);
+  const Outcome unknown = ces_sim("compare " + a.string() + " " + stopped.string());
+  EXPECT_EQ(unknown.code, 0) << unknown.out;
+  EXPECT_NE(unknown.out.find(stopped.string() + ": no summary.json"), std::string::npos)
+      << unknown.out;
+  EXPECT_EQ(unknown.out.find(a.string() + ": "), std::string::npos) << unknown.out;
+  std::ofstream(stopped / "summary.json")
+      << R"({"complete": false, "reason": "interrupted by SIGINT"})";
+  const Outcome interrupted = ces_sim("compare " + a.string() + " " + stopped.string());
+  EXPECT_NE(
+      interrupted.out.find(stopped.string() + ": its run did not complete (interrupted by SIGINT)"),
+      std::string::npos)
+      << interrupted.out;
+}
+
 // A folder whose tables are not ces-sim's is refused, naming the file,
 // the line and what was expected, never compared as numbers it lacks.
 TEST(Cli, CompareRefusesTablesItDoesNotKnow) {

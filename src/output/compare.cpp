@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <stdexcept>
 
 #include "common/csv.hpp"
@@ -255,9 +256,32 @@ double wasserstein1(std::vector<std::pair<double, double>> a,
   return distance;
 }
 
+namespace {
+
+// Whether the run in `dir` completed, by its summary.json: a note where it
+// did not, or where that is not known. The tables of a run that stopped
+// hold what it had collected by then.
+void note_incomplete(const std::filesystem::path& dir, CompareResult& r) {
+  std::ifstream in(dir / "summary.json");
+  const nlohmann::json summary = nlohmann::json::parse(in, nullptr, false);
+  if (!summary.is_object() || !summary.contains("complete") || !summary["complete"].is_boolean()) {
+    r.notes.push_back(dir.string() + ": no summary.json saying whether its run completed");
+    return;
+  }
+  if (summary["complete"].get<bool>()) return;
+  const std::string reason =
+      summary.contains("reason") && summary["reason"].is_string() ? summary["reason"] : "";
+  r.notes.push_back(dir.string() + ": its run did not complete (" + reason +
+                    "): its tables hold what it had collected when it stopped");
+}
+
+}  // namespace
+
 CompareResult compare_outputs(const std::filesystem::path& a, const std::filesystem::path& b,
                               const CompareOptions& options) {
   CompareResult r;
+  note_incomplete(a, r);
+  note_incomplete(b, r);
   compare_tables(a, "bins.csv", read_tally_table(a / "bins.csv", {kBinsHeader}),
                  read_tally_table(b / "bins.csv", {kBinsHeader}), options, r);
   const auto products = [](const std::filesystem::path& dir) {
