@@ -360,6 +360,15 @@ TEST(HostileDocuments, ControlCharactersAreRefusedWithTheirPlace) {
   }
   expect_one(text_errors(std::string(kMinimal) + "name: \"a\x1b[2Jb\"\n", "escape.yaml"),
              "escape.yaml:3:9: a control character (byte 0x1b)");
+  // The same written as escapes, in a value and in a key, in YAML and JSON.
+  expect_one(text_errors(std::string(kMinimal) + "name: \"a\\e[2Jb\"\n", "escaped.yaml"),
+             "escaped.yaml:3:7: name: a control character (byte 0x1b, written as an escape)");
+  expect_one(text_errors(std::string(kMinimal) + "\"na\\x00me\": x\n", "key.yaml"),
+             "key.yaml:3:1: a control character (byte 0x00, written as an escape)");
+  expect_one(text_errors("{\"ces_sim\": 1, \"time\": {\"step\": \"1 ms\", \"end\": \"1 s\"}, "
+                         "\"name\": \"a\\u0007\"}",
+                         "escaped.json"),
+             "a control character (byte 0x07, written as an escape)");
 }
 
 TEST(HostileDocuments, JsonNumbersOutOfRangeHaveALine) {

@@ -112,6 +112,10 @@ class Converter {
       n.kind = Node::Kind::Scalar;
       n.mark = mark(y.Mark());
       n.text = y.Scalar();
+      if (!printable(n.text, n.mark, path)) {
+        n.reported = true;
+        return n;
+      }
       const bool quoted = y.Tag() == "!" || y.Tag() == "tag:yaml.org,2002:str";
       std::optional<nlohmann::json> value = quoted ? nlohmann::json(n.text) : resolve_plain(n.text);
       n.scalar = value ? std::move(*value) : nlohmann::json(n.text);
@@ -185,6 +189,20 @@ class Converter {
     return excerpt(value, room);
   }
 
+  // A control character written as an escape ("\e[2J", "\u0000") passes
+  // the file's own check and would reach a terminal or a file name as it
+  // is: refused like one written raw.
+  bool printable(const std::string& text, const Mark& at, const std::string& path) {
+    const auto bad = control_character(text);
+    if (!bad) return true;
+    char byte[8];
+    std::snprintf(byte, sizeof byte, "0x%02x", static_cast<unsigned char>(text[*bad]));
+    diags_.error(at, path,
+                 std::string("a control character (byte ") + byte +
+                     ", written as an escape), expected printable text");
+    return false;
+  }
+
   // yaml-cpp keeps every duplicate key; the first one wins, the others are
   // reported (they are almost always a forgotten edit).
   void convert_map(const YAML::Node& y, Node& n, const std::string& path, int depth) {
@@ -196,6 +214,7 @@ class Converter {
         continue;
       }
       const std::string key = it->first.Scalar();
+      if (!printable(key, key_mark, path)) continue;
       const std::string key_path = path.empty() ? key : path + "." + key;
       if (key == "<<" && it->first.Tag() == "?") {
         diags_.error(key_mark, excerpt(key_path, limits::kPathBytes),
