@@ -197,6 +197,17 @@ TEST(Study, TheTightestToleranceIsTheReference) {
   EXPECT_NE(r.out.find("reference: " + (dir / "case_1").string()), std::string::npos) << r.out;
 }
 
+// Cases that end before any particle reaches a collector: the errors read
+// 0, and the study says that is for want of anything to compare.
+TEST(Study, ANothingCollectedReferenceIsNamed) {
+  const path dir = test::fresh_dir("study_nothing");
+  const test::Outcome r = test::ces_sim(
+      "study " + kScene + " --set time.end=1ms --vary time.step=1ms,0.5ms -o " + dir.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("warning: the reference collected no particle"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("warning: the reference collected no particle"), std::string::npos) << r.out;
+}
+
 // --list-cases: one line per case, K then its --set list; --case K runs that
 // case only; the full study then reuses it rather than running it again.
 TEST(Study, ListAndSelectCases) {

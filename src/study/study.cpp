@@ -476,6 +476,14 @@ std::string sampling_line(const fs::path& reference) {
          fmt(grade) + ", recovery " + fmt(recovery) + "\n";
 }
 
+// A reference that collected nothing leaves nothing to measure: its cases'
+// errors read 0, which says so rather than that they agree.
+std::string nothing_collected(const fs::path& reference) {
+  if (!output::read_landings(reference / "crossings.csv").empty()) return "";
+  return "warning: the reference collected no particle, so every error below is 0 for want of "
+         "anything to compare; run the cases until particles reach the collectors (time.end)\n";
+}
+
 std::string study_table(const std::vector<Axis>& axes, const std::vector<Row>& rows) {
   std::vector<std::vector<std::string>> cells{{"case"}};
   for (const Axis& a : axes)
@@ -698,8 +706,10 @@ int run(const Options& o) {
   std::vector<Row> rows;
   for (const Case& c : cases) rows.push_back(read_row(o, c, reference));
   output::write_file_atomic(o.out_dir / "study.csv", study_csv(o.axes, rows));
+  const std::string warning = nothing_collected(reference);
+  if (!warning.empty()) std::fputs(warning.c_str(), stderr);
   const std::string svg = study_svg(rows),
-                    table = sampling_line(reference) + study_table(o.axes, rows);
+                    table = warning + sampling_line(reference) + study_table(o.axes, rows);
   output::write_file_atomic(o.out_dir / "study.svg", svg);
   output::write_file_atomic(o.out_dir / "report.html", study_report(cases, reference, table, svg));
   std::printf("reference: %s\n%s", reference.c_str(), table.c_str());
