@@ -385,6 +385,38 @@ TEST(HostileDocuments, JsonNumbersOutOfRangeHaveALine) {
 
 // ------------------------------------------------------------------ semantics
 
+// A field grid is 0 outside its box: one that misses the drum's surface
+// (here a 2 cm cube round the axis) loads, with a warning giving the share
+// it covers and its box; one round the whole drum loads without.
+TEST(HostileSemantics, AFieldGridMissingTheDrumWarns) {
+  const fs::path dir = test::fresh_dir("grid_warning");
+  auto grid = [&](const std::string& name, double half) {
+    std::string text = "x,y,z,Ex,Ey,Ez\n";
+    for (const double z : {-half, half})
+      for (const double y : {-half, half})
+        for (const double x : {-half, half})
+          text +=
+              std::to_string(x) + "," + std::to_string(y) + "," + std::to_string(z) + ",1e5,0,0\n";
+    return write(dir / name, text).string();
+  };
+  const std::string scenes = std::string(CES_SOURCE_DIR) + "/scenes/";
+  for (const auto& [file, expected] : {std::pair{grid("small.csv", 0.01), std::size_t(1)},
+                                       std::pair{grid("whole.csv", 0.5), std::size_t(0)}}) {
+    std::vector<Diagnostic> warnings;
+    LoadOptions options;
+    options.warnings = &warnings;
+    options.removals = {"electrostatics.electrodes.wire"};
+    options.overrides = {{"electrostatics.field", "{model: grid, file: " + file + "}"}};
+    load(scenes + "ces_pcb.yaml", options);
+    ASSERT_EQ(warnings.size(), expected) << file;
+    if (expected)
+      EXPECT_NE(warnings[0].str().find("the field grid covers 0 % of the drum's surface (x -0.01 "
+                                       "to 0.01, y -0.01 to 0.01, z -0.01 to 0.01 m)"),
+                std::string::npos)
+          << warnings[0].str();
+  }
+}
+
 // Warnings do not stop a load: feeds without gravity say so, and an
 // explicit gravity of zero says it is meant.
 TEST(HostileSemantics, FeedsWithoutGravityWarn) {

@@ -181,7 +181,7 @@ class ElectrostaticsCompiler {
     const Node& f = s_.at("field");
     const Node& model = f.at("model");
     const Node* file = f.find("file");
-    if (model.string() == "grid") return grid(f);
+    if (model.string() == "grid") return grid(f, drum);
     if (file) {
       diags_.error(*file, "only the grid model reads a file, expected model: grid or no file");
       return std::nullopt;
@@ -212,7 +212,33 @@ class ElectrostaticsCompiler {
     return true;
   }
 
-  std::optional<fields::ElectricField> grid(const Node& f) {
+  // The grid's field is 0 outside its box: a grid that misses part of the
+  // drum's surface, where the electric forces decide the separation, is
+  // said to, with its box.
+  void warn_uncovered(const Node& file, const fields::GridField& grid, const fields::Drum& drum) {
+    constexpr int kSamples = 360;
+    const auto& axes = grid.axes();
+    auto inside = [&](int a, double x) {
+      return x >= axes[a].origin &&
+             x <= axes[a].origin + double(axes[a].count - 1) * axes[a].spacing;
+    };
+    int covered = 0;
+    for (int k = 0; k < kSamples; ++k) {
+      const double angle = 2.0 * kPi * k / kSamples;
+      covered += inside(0, drum.radius * std::cos(angle)) &&
+                 inside(1, drum.radius * std::sin(angle)) && inside(2, 0.0);
+    }
+    if (covered == kSamples) return;
+    auto span = [&](int a) {
+      return format(axes[a].origin) + " to " +
+             format(axes[a].origin + double(axes[a].count - 1) * axes[a].spacing);
+    };
+    diags_.warning(file, "the field grid covers " + std::to_string(100 * covered / kSamples) +
+                             " % of the drum's surface (x " + span(0) + ", y " + span(1) + ", z " +
+                             span(2) + " m): outside it the field is 0");
+  }
+
+  std::optional<fields::ElectricField> grid(const Node& f, const fields::Drum& drum) {
     const Node* file = f.find("file");
     if (!file) {
       diags_.error(f, "missing required key 'file', expected the grid's CSV file");
@@ -224,7 +250,9 @@ class ElectrostaticsCompiler {
       return std::nullopt;
     }
     try {
-      return std::make_shared<const fields::GridField>(fields::GridField::load_csv(path));
+      auto field = std::make_shared<const fields::GridField>(fields::GridField::load_csv(path));
+      warn_uncovered(*file, *field, drum);
+      return field;
     } catch (const std::exception& e) {
       diags_.error(*file, std::string("cannot read the field grid: ") + e.what());
       return std::nullopt;
