@@ -57,38 +57,44 @@ Cad read_cad(const std::string& input, const Annotations& a) {
 }
 
 // The top-level keys the annotations' includes define (they decide, for
-// example, whether the exporter makes a domain).
-std::set<std::string> included_keys(const Annotations& a) {
-  std::set<std::string> keys;
+// example, whether the exporter makes a domain). The annotations are read
+// as the scene loader reads a scene, so an include outside their folder and
+// the --include-path folders is refused before it is opened: annotations
+// must not be a way to read, or probe, a machine's files.
+std::set<std::string> included_keys(const Annotations& a,
+                                    const std::vector<std::string>& include_paths) {
   scene::Diagnostics diags;
   scene::Budget budget;
-  for (const Node* inc : a.includes) {
-    const fs::path p = fs::path(a.path).parent_path() / inc->string();
-    std::error_code ec;
-    if (!fs::is_regular_file(p, ec)) {
-      diags.error(inc->mark, "include", "cannot read '" + p.string() + "': no such file");
-      continue;
-    }
-    if (const auto tree = scene::load_tree(p.string(), {}, budget, diags))
-      for (const scene::Entry& e : tree->entries) keys.insert(e.key);
-  }
+  const auto tree = scene::load_tree(a.path, include_paths, budget, diags);
   if (!diags.empty()) diags.raise();
+  std::set<std::string> keys;
+  for (const scene::Entry& e : tree->entries)
+    if (e.key_mark.file != a.path) keys.insert(e.key);
   return keys;
 }
 
 // The folders of the annotations' includes: the scene includes them where
-// they are, so ces-sim must be told it may read them (--include-path).
-std::vector<std::string> include_folders(const Annotations& a, std::vector<std::string>& warnings) {
+// they are, so ces-sim must be told it may read them (--include-path). The
+// exporter's own --include-path folders follow, unannounced: the includes'
+// own includes may come from them.
+std::vector<std::string> include_folders(const Annotations& a,
+                                         const std::vector<std::string>& include_paths,
+                                         std::vector<std::string>& warnings) {
+  std::error_code ec;
   std::set<std::string> folders;
   for (const Node* inc : a.includes) {
-    std::error_code ec;
     const fs::path p = fs::absolute(fs::path(a.path).parent_path() / inc->string(), ec);
     folders.insert(fs::weakly_canonical(p, ec).parent_path().string());
   }
   for (const std::string& f : folders)
     warnings.push_back("the scene includes fragments from " + f + ": run it with --include-path " +
                        f);
-  return {folders.begin(), folders.end()};
+  std::vector<std::string> all(folders.begin(), folders.end());
+  for (const std::string& f : include_paths) {
+    const std::string p = fs::weakly_canonical(fs::absolute(f, ec), ec).string();
+    if (folders.insert(p).second) all.push_back(p);
+  }
+  return all;
 }
 
 // ------------------------------------------------------------------ the folder
@@ -425,6 +431,7 @@ void note_domain(std::vector<scene::Diagnostic>& found, const Bounds& domain) {
 
 void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
   const Annotations a = read_annotations(o.annotations);
+  std::set<std::string> included = included_keys(a, o.include_paths);
   const fs::path folder = output_folder(o.output);
   check_output(folder);
   Cad cad = read_cad(o.input, a);
@@ -432,13 +439,13 @@ void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
   const Machine m = assemble(std::move(cad.parts), a, units);
   std::vector<std::string> warnings = m.warnings;
   const SceneSetup setup{fs::path(o.input).stem().string(), folder / "scene.yaml",
-                         included_keys(a)};
+                         std::move(included)};
   std::set<std::string> made;
   for (const char* key : {"gravity", "domain"})
     if (!a.root->find(key) && !setup.included_keys.count(key)) made.insert(key);
   const Node root = build_scene(m, a, setup, warnings);
   scene::LoadOptions check;
-  check.include_paths = include_folders(a, warnings);
+  check.include_paths = include_folders(a, o.include_paths, warnings);
   const std::string text = scene_header(o) + scene::to_yaml(root);
 
   const TempFolder temp(sibling(folder, "tmp"));

@@ -5,6 +5,7 @@
 #pragma once
 #include <ostream>
 #include <string>
+#include <vector>
 
 namespace ces::exporter {
 
@@ -13,6 +14,8 @@ struct ExportOptions {
   std::string annotations;  // annotations.yaml
   std::string output;       // folder to create (or an earlier export to replace)
   bool quiet = false;       // no report on stdout (warnings still go to stderr)
+  // Folders the annotations' includes may come from besides their own.
+  std::vector<std::string> include_paths;
 };
 
 // Exit codes, as ces-sim's.

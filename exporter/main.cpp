@@ -1,4 +1,4 @@
-// ces-export INPUT -a ANNOTATIONS -o FOLDER [--quiet]
+// ces-export INPUT -a ANNOTATIONS -o FOLDER [--include-path DIR]... [--quiet]
 //
 // Turns a CAD export (a STEP file, or STL/OBJ files) and an annotation
 // file into a ces-sim scene: FOLDER/scene.yaml, FOLDER/meshes/*.stl and
@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
       ->required();
   app.add_option("-o,--output", options.output, "Folder to write (replaces an earlier export)")
       ->required();
+  app.add_option("--include-path", options.include_paths,
+                 "Folder the annotations' includes may come from besides their own (repeatable)");
   app.add_flag("-q,--quiet", options.quiet, "No report on stdout");
   app.set_version_flag("--version",
                        std::string("ces-export ") + CES_VERSION +

@@ -87,14 +87,15 @@ std::string machine_annotations(const std::string& drum_axis, const std::string&
          extra + kSceneKeys;
 }
 
-Exported run(const fs::path& input, const std::string& annotations, const fs::path& work) {
+Exported run(const fs::path& input, const std::string& annotations, const fs::path& work,
+             const std::vector<std::string>& include_paths) {
   const fs::path file = work / "annotations.yaml";
   std::ofstream(file) << annotations;
   Exported e;
   e.folder = work / "out";
   std::ostringstream out, err;
-  e.code =
-      exporter::run_export({input.string(), file.string(), e.folder.string(), false}, out, err);
+  e.code = exporter::run_export(
+      {input.string(), file.string(), e.folder.string(), false, include_paths}, out, err);
   e.out = out.str();
   e.err = err.str();
   if (e.code == 0) {

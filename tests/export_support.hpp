@@ -56,8 +56,9 @@ struct Exported {
 };
 
 // Exports `input` with `annotations` (written to work/annotations.yaml)
-// into work/out.
-Exported run(const fs::path& input, const std::string& annotations, const fs::path& work);
+// into work/out, includes allowed from `include_paths` too.
+Exported run(const fs::path& input, const std::string& annotations, const fs::path& work,
+             const std::vector<std::string>& include_paths = {});
 
 YAML::Node body(const Exported& e, const std::string& name);
 Vec3 vec(const YAML::Node& n);

@@ -137,6 +137,40 @@ TEST(ExportStl, IncludesJointsAndObjParts) {
   expect_validates(e, " --include-path " + common);
 }
 
+// The annotations' includes are held to their folder and the --include-path
+// ones, as a scene's are: any other file, or a link out, is refused before
+// it is opened, the same whether it exists or not, and none of it is quoted.
+TEST(ExportBadInput, IncludesOutsideTheAnnotationsFolder) {
+  const fs::path work = fresh_dir("export_include_outside");
+  write_stl_machine(work / "cad");
+  const fs::path elsewhere = work / "elsewhere", own = work / "own";
+  fs::create_directories(elsewhere);
+  fs::create_directories(own);
+  std::ofstream(elsewhere / "secret.yaml") << "password: hunter2\n";
+  fs::create_symlink(elsewhere / "secret.yaml", own / "link.yaml");
+  const std::vector<std::string> names = {"../elsewhere/secret.yaml",
+                                          (elsewhere / "secret.yaml").string(),
+                                          "../elsewhere/none.yaml", "link.yaml"};
+  for (const std::string& name : names) {
+    const Exported e =
+        run(work / "cad", "include: " + name + "\n" + machine_annotations("[0, 0, -1]"), own);
+    EXPECT_EQ(e.code, 2) << name;
+    EXPECT_NE(e.err.find("annotations.yaml:1:10: include: '" + name + "' is outside"),
+              std::string::npos)
+        << e.err;
+    EXPECT_EQ(e.err.find("hunter2"), std::string::npos) << e.err;
+    expect_nothing_written(e);
+  }
+  std::ofstream(elsewhere / "settings.yaml")
+      << "domain: {box: {min: [-1, -1, -1], max: [1, 1, 1]}}\n";
+  const Exported allowed =
+      run(work / "cad", "include: ../elsewhere/settings.yaml\n" + machine_annotations("[0, 0, -1]"),
+          own, {elsewhere.string()});
+  ASSERT_EQ(allowed.code, 0) << allowed.err;
+  EXPECT_FALSE(allowed.scene["domain"]);
+  expect_validates(allowed, " --include-path " + fs::weakly_canonical(elsewhere).string());
+}
+
 // The field models want the drum's axis on z through the origin: CAD drawn
 // elsewhere is moved there by `frame`, or refused with a hint.
 TEST(ExportStl, ElectrodesAndTheDrumFrame) {
@@ -458,7 +492,7 @@ TEST(ExportExample, TheReadmeMachineExportsAndSeparates) {
   std::ostringstream out, err;
   const int code = run_export(
       {(root / "meshes/example").string(), (root / "meshes/example/annotations.yaml").string(),
-       (work / "example").string(), false},
+       (work / "example").string(), false, {}},
       out, err);
   ASSERT_EQ(code, 0) << err.str();
   EXPECT_EQ(err.str(), "");
