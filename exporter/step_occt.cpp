@@ -1,5 +1,8 @@
 // STEP (AP203/AP214) through OpenCASCADE's XDE reader: part names from the
-// assembly, triangles from BRepMesh, exact cylinders from the B-rep.
+// assembly, triangles from BRepMesh, exact cylinders from the B-rep. The
+// file is read in a child process (read_step says why).
+#include <sys/wait.h>
+#include <unistd.h>
 #include <BRepAdaptor_Surface.hxx>
 #include <BRepMesh_IncrementalMesh.hxx>
 #include <BRep_Tool.hxx>
@@ -23,9 +26,14 @@
 #include <XCAFApp_Application.hxx>
 #include <XCAFDoc_DocumentTool.hxx>
 #include <XCAFDoc_ShapeTool.hxx>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <system_error>
+#include <type_traits>
 
 #include "parts.hpp"
 
@@ -212,25 +220,211 @@ std::vector<Part> read_document(const std::string& path, const StepOptions& opti
   return std::move(walker.parts);
 }
 
+// ------------------------------------------------------------ across a pipe
+
+struct StepRead {
+  std::vector<Part> parts;
+  std::string file_unit;
+};
+
+// What the child read, as bytes for the parent: numbers as this machine
+// holds them (both ends are the same program), strings and lists counted.
+class Packer {
+ public:
+  template <class T>
+  void put(const T& value) {
+    static_assert(std::is_arithmetic_v<T>);
+    bytes.append(reinterpret_cast<const char*>(&value), sizeof value);
+  }
+  void put(const std::string& s) {
+    put(std::uint64_t(s.size()));
+    bytes += s;
+  }
+  void put(const Vec3& v) {
+    for (int i = 0; i < 3; ++i) put(v[i]);
+  }
+  void put(const Part& p) {
+    put(p.name);
+    put(p.instance);
+    put(std::uint64_t(p.mesh.vertices.size()));
+    for (const Vec3& v : p.mesh.vertices) put(v);
+    put(std::uint64_t(p.mesh.triangles.size()));
+    for (const auto& t : p.mesh.triangles)
+      for (std::uint32_t i : t) put(i);
+    put(char(p.exact_cylinder.has_value()));
+    if (!p.exact_cylinder) return;
+    const ExactCylinder& e = *p.exact_cylinder;
+    put(e.cylinder.axis);
+    put(e.cylinder.center);
+    put(e.cylinder.radius);
+    put(e.cylinder.length);
+    put(e.faces);
+    put(e.other_cylinders);
+  }
+
+  std::string bytes;
+};
+
+class Unpacker {
+ public:
+  explicit Unpacker(const std::string& bytes) : bytes_(bytes) {}
+
+  template <class T>
+  T get() {
+    static_assert(std::is_arithmetic_v<T>);
+    T value{};
+    std::memcpy(&value, take(sizeof value), sizeof value);
+    return value;
+  }
+  std::string text() {
+    const auto n = get<std::uint64_t>();
+    return std::string(take(n), n);
+  }
+  Vec3 vec() {
+    Vec3 v;
+    for (int i = 0; i < 3; ++i) v[i] = get<double>();
+    return v;
+  }
+  Part part() {
+    Part p;
+    p.name = text();
+    p.instance = text();
+    p.mesh.vertices.resize(get<std::uint64_t>());
+    for (Vec3& v : p.mesh.vertices) v = vec();
+    p.mesh.triangles.resize(get<std::uint64_t>());
+    for (auto& t : p.mesh.triangles)
+      for (std::uint32_t& i : t) i = get<std::uint32_t>();
+    if (!get<char>()) return p;
+    ExactCylinder& e = p.exact_cylinder.emplace();
+    e.cylinder.axis = vec();
+    e.cylinder.center = vec();
+    e.cylinder.radius = get<double>();
+    e.cylinder.length = get<double>();
+    e.faces = get<int>();
+    e.other_cylinders = get<int>();
+    return p;
+  }
+  bool done() const { return at_ == bytes_.size(); }
+
+ private:
+  const char* take(std::size_t n) {
+    if (n > bytes_.size() - at_) throw std::runtime_error("the STEP reader's answer is cut short");
+    at_ += n;
+    return bytes_.data() + at_ - n;
+  }
+
+  const std::string& bytes_;
+  std::size_t at_ = 0;
+};
+
+// The child's answer: 'P' and the parts, or 'E' and the error message.
+std::string answer(const std::string& path, const StepOptions& options) {
+  try {
+    silence_occt();
+    StepRead read;
+    read.parts = read_document(path, options, read.file_unit);
+    Packer p;
+    p.put('P');
+    p.put(read.file_unit);
+    p.put(std::uint64_t(read.parts.size()));
+    for (const Part& part : read.parts) p.put(part);
+    return std::move(p.bytes);
+  } catch (const InputError& e) {
+    return std::string("E") + e.what();
+  } catch (const Standard_Failure& e) {
+    return "Ecannot read " + path + ": OpenCASCADE: " + e.GetMessageString();
+  } catch (const std::exception& e) {
+    return "Ecannot read " + path + ": " + e.what();
+  }
+}
+
+void write_all(int fd, const std::string& bytes) {
+  for (std::size_t done = 0; done < bytes.size();) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return;
+    done += std::size_t(n);
+  }
+}
+
+std::string read_all(int fd) {
+  std::string bytes;
+  char buffer[1 << 16];
+  for (;;) {
+    const ssize_t n = ::read(fd, buffer, sizeof buffer);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return bytes;
+    bytes.append(buffer, std::size_t(n));
+  }
+}
+
+// How the child ended, when it did not answer.
+std::string ending(int status) {
+  if (WIFSIGNALED(status))
+    return std::string("OpenCASCADE crashed reading it (") + ::strsignal(WTERMSIG(status)) + ")";
+  return "OpenCASCADE stopped reading it (exit status " + std::to_string(WEXITSTATUS(status)) + ")";
+}
+
+// Runs answer() in a child process and returns it; a child that dies
+// without answering is an InputError naming the file.
+std::string answer_in_child(const std::string& path, const StepOptions& options) {
+  int fds[2];
+  if (::pipe(fds) != 0) throw std::system_error(errno, std::generic_category(), "pipe");
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::system_error(errno, std::generic_category(), "fork");
+  if (pid == 0) {
+    ::close(fds[0]);
+    write_all(fds[1], answer(path, options));
+    ::_exit(0);  // no atexit handlers, no flushing of the parent's buffers
+  }
+  ::close(fds[1]);
+  const std::string bytes = read_all(fds[0]);
+  ::close(fds[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 0 && !bytes.empty()) return bytes;
+  throw InputError("cannot read " + path + ": " + ending(status) +
+                   ", expected a well-formed STEP file (a reference to a missing entity, an "
+                   "entity that refers to itself or a value out of range can crash it)");
+}
+
+StepRead unpack(const std::string& bytes, const std::string& path) {
+  if (bytes.front() == 'E') throw InputError(bytes.substr(1));
+  Unpacker u(bytes);
+  u.get<char>();
+  StepRead read;
+  read.file_unit = u.text();
+  read.parts.resize(u.get<std::uint64_t>());
+  for (Part& p : read.parts) p = u.part();
+  if (!u.done()) throw std::runtime_error("the STEP reader's answer for " + path + " is too long");
+  return read;
+}
+
 }  // namespace
 
 bool have_step_reader() { return true; }
 
+// OpenCASCADE crashes (SIGSEGV) on some malformed files instead of
+// throwing: an entity that refers to one the file lacks, or to itself, a
+// radius of 1e300. Its own remedy, OSD::SetSignal with OCC_CATCH_SIGNALS,
+// jumps out of the signal handler past the destructors of every frame in
+// between and leaves OpenCASCADE's state, and the heap a wild write may
+// have hit, as the fault left them: the process must not go on trusting
+// them, and a fault it does not catch still kills the exporter silently.
+// So a forked child reads the file and sends the parts back through a
+// pipe: whatever the file does to the child, the exporter survives it and
+// names the file.
 std::vector<Part> read_step(const std::string& path, const StepOptions& options,
                             std::string& file_unit) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     throw InputError("cannot read " + path + ": no such file");
-  silence_occt();
-  std::vector<Part> parts;
-  try {
-    parts = read_document(path, options, file_unit);
-  } catch (const Standard_Failure& e) {
-    throw InputError("cannot read " + path + ": OpenCASCADE: " + e.GetMessageString());
-  }
-  if (options.unit_override) override_unit(parts, file_unit, *options.unit_override, path);
-  for (Part& p : parts) p.source = path;
-  return parts;
+  StepRead read = unpack(answer_in_child(path, options), path);
+  file_unit = read.file_unit;
+  if (options.unit_override) override_unit(read.parts, file_unit, *options.unit_override, path);
+  for (Part& p : read.parts) p.source = path;
+  return std::move(read.parts);
 }
 
 }  // namespace ces::exporter

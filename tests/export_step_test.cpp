@@ -1,6 +1,7 @@
 // ces-export on STEP assemblies written here with OpenCASCADE: exact
-// cylinders, boxes and meshes from the assembly, the file's unit, and a file
-// that is not STEP. Only in a build with OpenCASCADE.
+// cylinders, boxes and meshes from the assembly, the file's unit, a file
+// that is not STEP, and the reference machine's file made malformed. Only in
+// a build with OpenCASCADE.
 #ifdef CES_EXPORT_HAVE_OCCT
 #include <gtest/gtest.h>
 
@@ -16,7 +17,10 @@
 #include <XCAFApp_Application.hxx>
 #include <XCAFDoc_DocumentTool.hxx>
 #include <XCAFDoc_ShapeTool.hxx>
+#include <array>
 #include <fstream>
+#include <regex>
+#include <vector>
 
 #include "export_support.hpp"
 #include "support.hpp"
@@ -28,6 +32,8 @@ using ces::kPi;
 using ces::Vec3;
 using ces::test::fresh_dir;
 using ces::test::read_text;
+
+const fs::path kSourceRoot = CES_SOURCE_DIR;
 
 struct StepPart {
   const char* name;
@@ -120,6 +126,44 @@ TEST(ExportStep, UnreadableFileIsAnError) {
   EXPECT_EQ(e.code, 2);
   EXPECT_NE(e.err.find("cannot read"), std::string::npos) << e.err;
   expect_nothing_written(e);
+}
+
+// meshes/ces/ces_machine.step with every match of `pattern` replaced, written
+// to `path`.
+void write_edited_reference(const fs::path& path, const std::string& pattern,
+                            const std::string& replacement) {
+  const std::string text = read_text(kSourceRoot / "meshes/ces/ces_machine.step");
+  const std::string edited = std::regex_replace(text, std::regex(pattern), replacement);
+  ASSERT_NE(edited, text) << pattern;
+  std::ofstream(path) << edited;
+}
+
+// The reference machine exported from `step` with its annotations.
+Exported export_edited(const fs::path& step, const fs::path& work) {
+  return run(step, read_text(kSourceRoot / "meshes/ces/annotations.yaml"), work);
+}
+
+// Files that crash OpenCASCADE (a reference to a missing entity, an entity
+// that refers to itself, a circle of radius 1e300) are errors naming the
+// file, like a file that is not STEP.
+TEST(ExportStep, FilesThatCrashOpenCascadeAreErrors) {
+  const fs::path work = fresh_dir("export_step_crash");
+  const std::vector<std::array<const char*, 3>> edits = {
+      {"dangling.step", R"(#11 = AXIS2_PLACEMENT_3D\('',#12,)",
+       "#11 = AXIS2_PLACEMENT_3D('',#999999,"},
+      {"cycle.step", R"(#11 = AXIS2_PLACEMENT_3D\(.*\);)",
+       "#11 = AXIS2_PLACEMENT_3D('',#11,#11,#11);"},
+      {"radius.step", R"(CIRCLE\('',(#\d+),[^)]*\))", "CIRCLE('',$1,1.E300)"}};
+  for (const auto& [name, pattern, replacement] : edits) {
+    write_edited_reference(work / name, pattern, replacement);
+    const Exported e = export_edited(work / name, work);
+    EXPECT_EQ(e.code, 2) << name;
+    EXPECT_NE(e.err.find("error: cannot read " + (work / name).string() +
+                         ": OpenCASCADE crashed reading it"),
+              std::string::npos)
+        << e.err;
+    expect_nothing_written(e);
+  }
 }
 
 }  // namespace
