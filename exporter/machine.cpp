@@ -162,6 +162,11 @@ void place_splitter(Placed& p, std::vector<std::string>& warnings) {
                      (p.box_fit ? "not a box: " + box_misfit(*p.box_fit) : "kept as a mesh"));
 }
 
+// Where a part's cylinder comes from, for messages.
+const char* cylinder_origin(const Placed& p) {
+  return p.cylinder_source == "step" ? "exact STEP surface" : "fitted";
+}
+
 // A corona wire thicker than the scene allows never ionises: refused at
 // its rule with the cylinder the part gave, before the scene loader would.
 void check_wire(const Placed& p) {
@@ -169,8 +174,7 @@ void check_wire(const Placed& p) {
   if (!type || type->string() != "corona" || p.cylinder->radius <= scene::kMaxCoronaWireRadius)
     return;
   throw InputError(where(type->mark) + type->path + ": " + label(p) + " has a radius of " +
-                   metres(p.cylinder->radius) + " (" +
-                   (p.cylinder_source == "step" ? "exact STEP surface" : "fitted") +
+                   metres(p.cylinder->radius) + " (" + cylinder_origin(p) +
                    "), too thick to ionise: expected a corona wire of radius at most " +
                    metres(scene::kMaxCoronaWireRadius) + ", or type: static for a field electrode");
 }
@@ -221,6 +225,19 @@ std::string unit_suggestion(double extent, const UnitChoice& units) {
   return "";
 }
 
+// The cylinder a part becomes need not span its triangles: a STEP surface
+// with a zero axis direction is endless. Checked once the triangles are
+// known to fit the bound, so the file's geometry is at fault, not its unit
+// (NaN counts as over).
+void check_cylinder_length(const Placed& p) {
+  if (!p.cylinder || p.cylinder->length <= kLargestPart) return;
+  throw InputError(p.part->source + ": " + label(p) + " is a cylinder " +
+                   metres(p.cylinder->length) + " long (" + cylinder_origin(p) +
+                   ") though its triangles span " + metres(p.quality.bounds.size().maxCoeff()) +
+                   ", expected at most " + metres(kLargestPart) +
+                   " (an axis direction of zero makes it endless)");
+}
+
 void check_units(const Machine& m, const UnitChoice& units) {
   Bounds all;
   for (const Placed& p : m.parts) {
@@ -230,6 +247,7 @@ void check_units(const Machine& m, const UnitChoice& units) {
       throw InputError(label(p) + " is " + metres(size) +
                        " across, so the units look wrong: the CAD was read in " + units.how +
                        unit_suggestion(all.size().maxCoeff(), units));
+    check_cylinder_length(p);
   }
   for (const Placed& p : m.parts)
     if (p.rule->role == Role::Drum && p.cylinder && p.cylinder->radius > kLargestDrumRadius)

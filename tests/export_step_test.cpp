@@ -166,5 +166,21 @@ TEST(ExportStep, FilesThatCrashOpenCascadeAreErrors) {
   }
 }
 
+// A zero axis direction makes an exact cylinder endless: refused, naming
+// the file and the part, as a part over 20 m across is, though its
+// triangles are of the size they should be.
+TEST(ExportStep, EndlessCylindersAreRefused) {
+  const fs::path work = fresh_dir("export_step_zero_direction");
+  const fs::path step = work / "zero.step";
+  write_edited_reference(step, R"(DIRECTION\('',\(0\.,0\.,1\.\)\))", "DIRECTION('',(0.,0.,0.))");
+  const Exported e = export_edited(step, work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find(step.string() + ": drum 'drum' is "), std::string::npos) << e.err;
+  EXPECT_NE(e.err.find(" m long (exact STEP surface) though its triangles span "),
+            std::string::npos)
+      << e.err;
+  expect_nothing_written(e);
+}
+
 }  // namespace
 #endif
