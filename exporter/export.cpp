@@ -39,10 +39,31 @@ struct Cad {
   UnitChoice units;
 };
 
+// Coordinates beyond this are a broken file, not a machine's placement:
+// fits and frames square them, and a square overflows past 1e154.
+constexpr double kFarthest = 1e6;  // m
+
+// Every point of every part within kFarthest of the origin (NaN is not),
+// so that a coordinate out of range is reported at the file that holds it
+// rather than as whatever it becomes downstream.
+void check_range(const std::vector<Part>& parts) {
+  for (const Part& p : parts) {
+    const auto check = [&](const Vec3& v) {
+      if ((v.array().abs() <= kFarthest).all()) return;
+      throw InputError("cannot read " + p.source + ": part '" + p.name + "' has a point at " +
+                       vector_text(v) + " m, expected coordinates within " + metres(kFarthest) +
+                       " of the origin");
+    };
+    for (const Vec3& v : p.mesh.vertices) check(v);
+    if (p.exact_cylinder) check(p.exact_cylinder->cylinder.center);
+  }
+}
+
 Cad read_cad(const std::string& input, const Annotations& a) {
   if (is_step(input)) {
     std::string declared;
     auto parts = read_step(input, {a.deflection, a.angle, a.unit}, declared);
+    check_range(parts);
     if (a.unit)
       return {
           std::move(parts),
@@ -51,7 +72,9 @@ Cad read_cad(const std::string& input, const Annotations& a) {
             {unit_scale(declared).value_or(1.0), declared + " (the STEP file's unit)"}};
   }
   const double scale = a.unit.value_or(1e-3);
-  return {read_mesh_files(input, scale),
+  auto parts = read_mesh_files(input, scale);
+  check_range(parts);
+  return {std::move(parts),
           {scale,
            a.unit ? a.unit_name + " (units in the annotations)" : "mm (the default for STL/OBJ)"}};
 }

@@ -182,5 +182,22 @@ TEST(ExportStep, EndlessCylindersAreRefused) {
   expect_nothing_written(e);
 }
 
+// Coordinates of 1e300 are reported at the STEP file, not as the
+// non-finite electrode distances they become in the scene.
+TEST(ExportStep, CoordinatesOutOfRangeAreErrorsOfTheFile) {
+  const fs::path work = fresh_dir("export_step_far");
+  const fs::path step = work / "far.step";
+  write_edited_reference(step, R"(#(12|16|20|24|28) = CARTESIAN_POINT\('',\([^,]*,)",
+                         "#$1 = CARTESIAN_POINT('',(1.E300,");
+  const Exported e = export_edited(step, work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find("error: cannot read " + step.string() + ": part '"), std::string::npos)
+      << e.err;
+  EXPECT_NE(e.err.find("expected coordinates within 1e+06 m of the origin"), std::string::npos)
+      << e.err;
+  EXPECT_EQ(e.err.find("annotations.yaml"), std::string::npos) << e.err;
+  expect_nothing_written(e);
+}
+
 }  // namespace
 #endif
