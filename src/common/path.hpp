@@ -1,6 +1,7 @@
 // Paths as the commands that take them from a scene or a study name them.
 #pragma once
 #include <filesystem>
+#include <string>
 
 namespace ces {
 
@@ -10,5 +11,23 @@ namespace ces {
 inline std::filesystem::path absolute_path(const std::filesystem::path& p) {
   return std::filesystem::absolute(p.empty() ? std::filesystem::path(".") : p).lexically_normal();
 }
+
+// Whether `name`, a file's path read from a file anyone may edit (a run's
+// summary.json, an export's report), names a file inside the folder it is
+// relative to: not absolute, a file name at its end, no '.' or '..' part.
+bool is_inner_file_name(const std::string& name);
+
+// A folder, resolved once for every file checked in it.
+class ResolvedFolder {
+ public:
+  explicit ResolvedFolder(const std::filesystem::path& path);
+
+  // Whether `name` is a file (or a link) that lies in the folder itself: a
+  // 'sub/x' whose 'sub' links elsewhere names another folder's file.
+  bool holds(const std::string& name) const;
+
+ private:
+  std::filesystem::path path_, real_;
+};
 
 }  // namespace ces

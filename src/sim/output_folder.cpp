@@ -8,20 +8,17 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "common/path.hpp"
+
 namespace ces {
 namespace {
 
 namespace fs = std::filesystem;
 
-// A listed name a run may have written: a file's path, relative, inside
-// the folder and not in its partial/ (a summary.json is text anyone may
-// edit: '.', '..', 'sub/' or 'partial' name no file a run wrote).
+// A listed name a run may have written: a file inside the folder and not
+// in its partial/ (a summary.json is text anyone may edit).
 bool safe_relative(const std::string& name) {
-  const fs::path p(name);
-  if (name.empty() || p.is_absolute() || p.filename().empty() || *p.begin() == "partial")
-    return false;
-  return std::none_of(p.begin(), p.end(),
-                      [](const fs::path& part) { return part == ".." || part == "."; });
+  return is_inner_file_name(name) && *fs::path(name).begin() != "partial";
 }
 
 // The files a run's summary.json lists (relative paths), or none.
@@ -38,23 +35,6 @@ std::vector<std::string> listed_files(const fs::path& summary_json) {
   return files;
 }
 
-// A folder, resolved once for every file checked in it.
-struct Folder {
-  explicit Folder(const fs::path& p) : path(p), real(fs::weakly_canonical(p)) {}
-
-  // Whether `name` is a file (or a link) that lies in the folder itself: a
-  // listed 'sub/x' whose 'sub' links elsewhere names another folder's file.
-  bool holds(const std::string& name) const {
-    const fs::path file = path / name;
-    const fs::file_status status = fs::symlink_status(file);
-    if (!fs::is_regular_file(status) && !fs::is_symlink(status)) return false;
-    const fs::path within = fs::weakly_canonical(file.parent_path()).lexically_relative(real);
-    return !within.empty() && *within.begin() != "..";
-  }
-
-  fs::path path, real;
-};
-
 // What an unfinished run may have left in its work folder: the files its
 // summary lists, the checkpoint, and the names every run writes as it goes.
 void clear_work(const fs::path& work) {
@@ -64,7 +44,7 @@ void clear_work(const fs::path& work) {
                            "trajectories.pvd", "trajectories/machine_static.vtp", "field.csv",
                            "field.svg"})
     names.emplace_back(name);
-  const Folder folder(work);
+  const ResolvedFolder folder(work);
   for (const std::string& name : names) {
     if (!safe_relative(name)) continue;
     if (folder.holds(name)) fs::remove(work / name);
@@ -141,7 +121,7 @@ void OutputFolder::publish(const std::vector<std::string>& files) const {
       fs::create_directories((dir_ / f).parent_path());
       fs::rename(work_ / f, dir_ / f);
     }
-    const Folder out(dir_);
+    const ResolvedFolder out(dir_);
     for (const std::string& f : earlier)
       if (std::find(files.begin(), files.end(), f) == files.end() && out.holds(f))
         fs::remove(dir_ / f);
