@@ -11,6 +11,7 @@
 
 #include "annotations.hpp"
 #include "builder.hpp"
+#include "common/path.hpp"
 #include "format.hpp"
 #include "machine.hpp"
 #include "scene/diagnostics.hpp"
@@ -122,6 +123,8 @@ std::vector<std::string> include_folders(const Annotations& a,
 
 // ------------------------------------------------------------------ the folder
 
+constexpr const char* kReport = "export_report.json";
+
 fs::path output_folder(const std::string& given) {
   fs::path out = fs::absolute(given).lexically_normal();
   return out.filename().empty() ? out.parent_path() : out;
@@ -133,7 +136,7 @@ void check_output(const fs::path& out) {
   if (!fs::exists(out, ec)) return;
   if (!fs::is_directory(out, ec))
     throw InputError("cannot write to " + out.string() + ": it is a file, expected a folder");
-  if (!fs::is_empty(out, ec) && !fs::exists(out / "export_report.json", ec))
+  if (!fs::is_empty(out, ec) && !fs::exists(out / kReport, ec))
     throw InputError("cannot write to " + out.string() +
                      ": the folder exists and is not an earlier export (no export_report.json), "
                      "expected a new folder or an earlier export to replace");
@@ -156,13 +159,56 @@ void write_text(const fs::path& path, const std::string& text) {
   if (!out) throw InputError("cannot write " + path.string());
 }
 
-void publish(const fs::path& temp, const fs::path& out) {
+// The files an export writes, relative to its folder, as its report says:
+// the scene, the report and the parts' mesh files. A name that does not
+// stay inside the folder is left out: a report is text anyone may edit.
+std::vector<std::string> written_files(const json& report) {
+  std::vector<std::string> files{kReport};
+  const auto add = [&](const json& name) {
+    if (name.is_string() && is_inner_file_name(name.get<std::string>()))
+      files.push_back(name.get<std::string>());
+  };
+  if (!report.is_object()) return files;
+  if (report.contains("scene")) add(report["scene"]);
+  if (report.contains("parts") && report["parts"].is_array())
+    for (const json& p : report["parts"])
+      if (p.is_object() && p.contains("mesh_file")) add(p["mesh_file"]);
+  return files;
+}
+
+// The files the earlier export in `out` wrote (none when its report does
+// not parse).
+std::vector<std::string> earlier_files(const fs::path& out) {
+  std::ifstream in(out / kReport);
+  const json report = json::parse(in, nullptr, false);
+  return report.is_discarded() ? std::vector<std::string>{} : written_files(report);
+}
+
+// Moves the export's `files` from `temp` into `out`. Over an earlier
+// export, file by file: the earlier export's files this one does not
+// write again go, and nothing else in the folder is touched (the user's
+// notes, a run written into it), as ces-sim treats its output folder. The
+// report moves last, so the folder's report lists what it holds.
+void publish(const fs::path& temp, const fs::path& out, const std::vector<std::string>& files) {
   std::error_code ec;
   if (!fs::exists(out, ec)) return fs::rename(temp, out);
-  const fs::path old = sibling(out, "old");
-  fs::rename(out, old);
-  fs::rename(temp, out);
-  fs::remove_all(old);
+  for (const std::string& f : files)
+    if (fs::is_directory(out / f, ec))
+      throw InputError("cannot write " + (out / f).string() +
+                       ": it is a folder, expected a file of the earlier export or nothing");
+  const std::vector<std::string> earlier = earlier_files(out);
+  for (const std::string& f : files) {
+    if (f == kReport) continue;
+    fs::create_directories((out / f).parent_path());
+    fs::rename(temp / f, out / f);
+  }
+  const ResolvedFolder folder(out);
+  for (const std::string& f : earlier)
+    if (std::find(files.begin(), files.end(), f) == files.end() && folder.holds(f))
+      fs::remove(out / f);
+  if (fs::is_directory(fs::symlink_status(out / "meshes", ec)))
+    fs::remove(out / "meshes", ec);  // only when no file is left in it
+  fs::rename(temp / kReport, out / kReport);
 }
 
 // Removes the folder being built unless it was published.
@@ -480,7 +526,8 @@ void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
       write_binary_stl(p.mesh, temp.path() / p.mesh_file, "ces-export: " + p.name + ", metres");
   const std::string written = (temp.path() / "scene.yaml").string();
   write_text(written, text);
-  write_text(temp.path() / "export_report.json", report_json(o, units, m, warnings).dump(2) + "\n");
+  const json report = report_json(o, units, m, warnings);
+  write_text(temp.path() / kReport, report.dump(2) + "\n");
   Simulation sim;
   try {
     sim = scene::load(written, check);
@@ -489,7 +536,7 @@ void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
     if (made.count("domain")) note_domain(found, default_domain(m));
     throw scene::SceneError(found);
   }
-  publish(temp.path(), folder);
+  publish(temp.path(), folder, written_files(report));
   for (const std::string& w : warnings) err << "warning: " << w << "\n";
   if (!o.quiet) print_summary(out, {o, a, units, m, sim, made, check.include_paths});
 }

@@ -1,7 +1,8 @@
 // ces-export end to end: CAD + annotations -> a folder with scene.yaml,
 // meshes/*.stl and export_report.json, validated by the simulator's own
 // loader before it appears. Nothing is left behind on failure: the folder
-// is built beside the target and renamed into place at the end.
+// is built beside the target and moved into place at the end, file by file
+// over an earlier export, whose other files stay.
 #pragma once
 #include <ostream>
 #include <string>

@@ -21,7 +21,8 @@ int main(int argc, char** argv) {
   app.add_option("-a,--annotations", options.annotations,
                  "annotations.yaml: roles, parameters, scene keys")
       ->required();
-  app.add_option("-o,--output", options.output, "Folder to write (replaces an earlier export)")
+  app.add_option("-o,--output", options.output,
+                 "Folder to write (replaces an earlier export's files)")
       ->required();
   app.add_option("--include-path", options.include_paths,
                  "Folder the annotations' includes may come from besides their own (repeatable)");

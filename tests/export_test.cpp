@@ -695,6 +695,43 @@ TEST(ExportBadInput, VoltageAndSpeedWithoutUnit) {
       << wrong.err;
 }
 
+// Exporting again replaces what the earlier export wrote and nothing else:
+// the user's notes and a run written into the folder stay, the earlier
+// export's mesh that this one does not write goes, and names a report was
+// edited to list outside the folder are not touched.
+TEST(ExportStl, ExportingAgainKeepsTheUsersFiles) {
+  const fs::path work = fresh_dir("export_again");
+  write_stl_machine(work / "cad");
+  const Exported first = run(work / "cad", machine_annotations("[0, 0, -1]"), work);
+  ASSERT_EQ(first.code, 0) << first.err;
+  ASSERT_TRUE(fs::exists(first.folder / "meshes/hopper.stl"));
+  std::ofstream(first.folder / "NOTES.txt") << "my notes\n";
+  fs::create_directories(first.folder / "run");
+  std::ofstream(first.folder / "run" / "bins.csv") << "bin\n";
+  std::ofstream(work / "victim.txt") << "someone else's\n";
+  nlohmann::json report = first.report;
+  for (const std::string& name :
+       std::vector<std::string>{"../victim.txt", (work / "victim.txt").string()})
+    report["parts"].push_back({{"mesh_file", name}});
+  std::ofstream(first.folder / "export_report.json") << report.dump();
+  const Exported again =
+      run(work / "cad",
+          "parts:\n"
+          "  drum: {role: drum, material: steel, speed: 44.8 rpm, rotation_axis: [0, 0, -1]}\n"
+          "  \"split*\": {role: splitter, material: steel}\n" +
+              std::string(kSceneKeys),
+          work);
+  ASSERT_EQ(again.code, 0) << again.err;
+  EXPECT_EQ(read_text(first.folder / "NOTES.txt"), "my notes\n");
+  EXPECT_EQ(read_text(first.folder / "run" / "bins.csv"), "bin\n");
+  EXPECT_TRUE(fs::exists(work / "victim.txt"));
+  EXPECT_FALSE(fs::exists(first.folder / "meshes"));
+  EXPECT_FALSE(again.scene["bodies"][2]) << again.scene["bodies"];  // drum and splitter only
+  EXPECT_EQ(again.report["parts"].size(), 2u);
+  for (const auto& entry : fs::directory_iterator(work))
+    EXPECT_FALSE(entry.path().filename().string().starts_with(".out.")) << entry.path();
+}
+
 // Scene keys in the annotations are checked by the simulator's own loader;
 // its findings point into the annotations, and an earlier export survives.
 TEST(ExportBadInput, InvalidSceneKeysLeaveTheEarlierExportAlone) {
