@@ -1,8 +1,6 @@
 // STEP (AP203/AP214) through OpenCASCADE's XDE reader: part names from the
 // assembly, triangles from BRepMesh, exact cylinders from the B-rep. The
 // file is read in a child process (read_step says why).
-#include <sys/wait.h>
-#include <unistd.h>
 #include <BRepAdaptor_Surface.hxx>
 #include <BRepMesh_IncrementalMesh.hxx>
 #include <BRep_Tool.hxx>
@@ -28,13 +26,12 @@
 #include <XCAFDoc_ShapeTool.hxx>
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <system_error>
 #include <type_traits>
 
+#include "common/isolate.hpp"
 #include "parts.hpp"
 
 namespace ces::exporter {
@@ -338,55 +335,20 @@ std::string answer(const std::string& path, const StepOptions& options) {
   }
 }
 
-void write_all(int fd, const std::string& bytes) {
-  for (std::size_t done = 0; done < bytes.size();) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return;
-    done += std::size_t(n);
-  }
-}
-
-std::string read_all(int fd) {
-  std::string bytes;
-  char buffer[1 << 16];
-  for (;;) {
-    const ssize_t n = ::read(fd, buffer, sizeof buffer);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return bytes;
-    bytes.append(buffer, std::size_t(n));
-  }
-}
-
-// How the child ended, when it did not answer.
-std::string ending(int status) {
-  if (WIFSIGNALED(status))
-    return std::string("OpenCASCADE crashed reading it (") + ::strsignal(WTERMSIG(status)) + ")";
-  return "OpenCASCADE stopped reading it (exit status " + std::to_string(WEXITSTATUS(status)) + ")";
-}
-
-// Runs answer() in a child process and returns it; a child that dies
-// without answering is an InputError naming the file.
+// Runs answer() in a child process under limits (common/isolate.hpp) and
+// returns it; a child that dies or runs past them is an InputError naming
+// the file.
 std::string answer_in_child(const std::string& path, const StepOptions& options) {
-  int fds[2];
-  if (::pipe(fds) != 0) throw std::system_error(errno, std::generic_category(), "pipe");
-  const pid_t pid = ::fork();
-  if (pid < 0) throw std::system_error(errno, std::generic_category(), "fork");
-  if (pid == 0) {
-    ::close(fds[0]);
-    write_all(fds[1], answer(path, options));
-    ::_exit(0);  // no atexit handlers, no flushing of the parent's buffers
+  const double file_bytes = double(std::filesystem::file_size(path));
+  const IsolationLimits limits{4.0 * (1 << 30) + 16.0 * file_bytes, 120.0};
+  try {
+    return run_isolated([&] { return answer(path, options); }, limits);
+  } catch (const std::runtime_error& e) {
+    throw InputError("cannot read " + path + ": " + e.what() +
+                     ", expected a well-formed STEP file (a reference to a missing entity, an "
+                     "entity that refers to itself or a value out of range can crash "
+                     "OpenCASCADE)");
   }
-  ::close(fds[1]);
-  const std::string bytes = read_all(fds[0]);
-  ::close(fds[0]);
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (WIFEXITED(status) && WEXITSTATUS(status) == 0 && !bytes.empty()) return bytes;
-  throw InputError("cannot read " + path + ": " + ending(status) +
-                   ", expected a well-formed STEP file (a reference to a missing entity, an "
-                   "entity that refers to itself or a value out of range can crash it)");
 }
 
 StepRead unpack(const std::string& bytes, const std::string& path) {
