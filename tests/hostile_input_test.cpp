@@ -409,11 +409,12 @@ TEST(HostileSemantics, AFieldGridMissingTheDrumWarns) {
     options.overrides = {{"electrostatics.field", "{model: grid, file: " + file + "}"}};
     load(scenes + "ces_pcb.yaml", options);
     ASSERT_EQ(warnings.size(), expected) << file;
-    if (expected)
+    if (expected) {
       EXPECT_NE(warnings[0].str().find("the field grid covers 0 % of the drum's surface (x -0.01 "
                                        "to 0.01, y -0.01 to 0.01, z -0.01 to 0.01 m)"),
                 std::string::npos)
           << warnings[0].str();
+    }
   }
 }
 
