@@ -196,19 +196,9 @@ void publish(const fs::path& temp, const fs::path& out, const std::vector<std::s
     if (fs::is_directory(out / f, ec))
       throw InputError("cannot write " + (out / f).string() +
                        ": it is a folder, expected a file of the earlier export or nothing");
-  const std::vector<std::string> earlier = earlier_files(out);
-  for (const std::string& f : files) {
-    if (f == kReport) continue;
-    fs::create_directories((out / f).parent_path());
-    fs::rename(temp / f, out / f);
-  }
-  const ResolvedFolder folder(out);
-  for (const std::string& f : earlier)
-    if (std::find(files.begin(), files.end(), f) == files.end() && folder.holds(f))
-      fs::remove(out / f);
+  replace_files(temp, out, files, earlier_files(out), kReport);
   if (fs::is_directory(fs::symlink_status(out / "meshes", ec)))
     fs::remove(out / "meshes", ec);  // only when no file is left in it
-  fs::rename(temp / kReport, out / kReport);
 }
 
 // Removes the folder being built unless it was published.

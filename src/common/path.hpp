@@ -2,6 +2,7 @@
 #pragma once
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace ces {
 
@@ -16,6 +17,15 @@ inline std::filesystem::path absolute_path(const std::filesystem::path& p) {
 // summary.json, an export's report), names a file inside the folder it is
 // relative to: not absolute, a file name at its end, no '.' or '..' part.
 bool is_inner_file_name(const std::string& name);
+
+// Moves `files` (paths relative to both folders) from `from` into `to`
+// but `last`, removes those of `earlier` (what `to`'s index listed before)
+// not written again that lie in `to` itself, then moves `last` (the index
+// that lists what `to` holds): nothing else in `to` is touched. Throws
+// std::filesystem::filesystem_error.
+void replace_files(const std::filesystem::path& from, const std::filesystem::path& to,
+                   const std::vector<std::string>& files, const std::vector<std::string>& earlier,
+                   const std::string& last);
 
 // A folder, resolved once for every file checked in it.
 class ResolvedFolder {

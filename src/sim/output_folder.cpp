@@ -116,16 +116,7 @@ void OutputFolder::publish(const std::vector<std::string>& files) const {
                             (dir_ / f).string() + " is a folder");
   const std::vector<std::string> earlier = listed_files(dir_ / "summary.json");
   try {
-    for (const std::string& f : files) {
-      if (f == "summary.json") continue;
-      fs::create_directories((dir_ / f).parent_path());
-      fs::rename(work_ / f, dir_ / f);
-    }
-    const ResolvedFolder out(dir_);
-    for (const std::string& f : earlier)
-      if (std::find(files.begin(), files.end(), f) == files.end() && out.holds(f))
-        fs::remove(dir_ / f);
-    fs::rename(work_ / "summary.json", dir_ / "summary.json");
+    replace_files(work_, dir_, files, earlier, "summary.json");
     clear_work(work_);
   } catch (const fs::filesystem_error& e) {
     io("move the results into", dir_, e);
