@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <map>
 #include <random>
@@ -15,6 +16,7 @@
 
 #include "collision/broadphase.hpp"
 #include "collision/contacts.hpp"
+#include "common/isolate.hpp"
 #include "geometry/shapes.hpp"
 
 namespace ces::geo {
@@ -366,31 +368,57 @@ TEST(GeometryMesh, LoadFailuresNameTheFile) {
 
 // Files made to stop the reader or exhaust the process: a PLY whose header
 // promises more than it holds (assimp asserts), and headers of a few bytes
-// promising half a billion vertices. Each is an error naming the file, not
-// a crash, at once.
+// promising half a billion vertices, refused on the file's size before the
+// reader would allocate them. Each is an error naming the file, not a
+// crash, at once; a PLY that holds what it promises loads.
 TEST(GeometryMesh, HostileHeadersAreErrorsNotCrashes) {
   const ScratchDir dir;
-  const std::string header =
-      "ply\nformat ascii 1.0\nelement vertex COUNT\nproperty float x\nproperty float y\n"
-      "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
-      "0 0 0\n";
-  auto ply = [&](const std::string& name, const std::string& count) {
-    std::string text = header;
-    text.replace(text.find("COUNT"), 5, count);
+  auto ply = [&](const std::string& name, const std::string& vertices, const std::string& body) {
     const std::string path = dir.file(name);
-    write_file(path, text);
+    write_file(path, "ply\nformat ascii 1.0\nelement vertex " + vertices +
+                         "\nproperty float x\nproperty float y\nproperty float z\nelement face "
+                         "4\nproperty list uchar int vertex_indices\nend_header\n" +
+                         body);
     return path;
   };
-  const std::string short_of = ply("short.ply", "3");
+  const std::string short_of = ply("short.ply", "4", "0 0 0\n");
   EXPECT_NE(load_error(short_of).find(short_of + ": its reader stopped"), std::string::npos)
       << load_error(short_of);
-  const std::string bomb = ply("bomb.ply", "500000000");
-  EXPECT_NE(load_error(bomb).find(bomb + ": it needs more memory"), std::string::npos)
+  const std::string bomb = ply("bomb.ply", "500000000", "0 0 0\n");
+  EXPECT_NE(load_error(bomb).find(bomb + ": its header promises elements of at least 3e+09 bytes"),
+            std::string::npos)
       << load_error(bomb);
   const std::string off = dir.file("bomb.off");
   write_file(off, "OFF\n500000000 1 0\n0 0 0\n");
-  EXPECT_NE(load_error(off).find(off + ": it needs more memory"), std::string::npos)
+  EXPECT_NE(load_error(off).find(off + ": its header promises"), std::string::npos)
       << load_error(off);
+  const std::string tetrahedron = ply(
+      "tetrahedron.ply", "4", "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n");
+  EXPECT_EQ(load_error(tetrahedron), "no exception");
+}
+
+// What ends the child of run_isolated comes back as an error saying what:
+// its exception's message, an abort, memory past its limit.
+TEST(Isolation, WhatEndsTheChildIsSaid) {
+  const IsolationLimits limits{1.0 * (1 << 30), 10.0};
+  EXPECT_EQ(run_isolated([] { return std::string("done"); }, limits), "done");
+  auto error = [&](const std::function<std::string()>& work) -> std::string {
+    try {
+      run_isolated(work, limits);
+    } catch (const std::runtime_error& e) {
+      return e.what();
+    }
+    return "no exception";
+  };
+  EXPECT_EQ(error([]() -> std::string { throw std::runtime_error("bad row"); }), "bad row");
+  EXPECT_NE(error([]() -> std::string { std::abort(); }).find("stopped (Aborted)"),
+            std::string::npos);
+#if !defined(__SANITIZE_ADDRESS__)
+  EXPECT_NE(error([] {
+              return std::string(std::size_t(4) << 30, 'x');
+            }).find("it needs more memory than the 1 GiB"),
+            std::string::npos);
+#endif
 }
 
 // (n+1)^2 grid vertices spanning [0, n]^2 at z = 0, mapped by `place`; each

@@ -13,6 +13,7 @@
 #include <tuple>
 
 #include "common/isolate.hpp"
+#include "geometry/mesh_header.hpp"
 
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
@@ -483,6 +484,8 @@ std::shared_ptr<const TriMesh> load_mesh(const std::string& path, double scale) 
       throw std::runtime_error(std::filesystem::exists(path, ec) ? "not a regular file"
                                                                  : "no such file");
     }
+    if (const std::string promised = promised_beyond_size(path); !promised.empty())
+      throw std::runtime_error(promised);
     RawMesh mesh = clean(read_isolated(path, scale));
     if (mesh.triangles.empty()) throw std::runtime_error("no non-degenerate triangles");
     return std::make_shared<const TriMesh>(std::move(mesh.vertices), std::move(mesh.triangles));
