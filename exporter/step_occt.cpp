@@ -27,11 +27,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
-#include <type_traits>
 
 #include "common/isolate.hpp"
+#include "common/serial.hpp"
 #include "parts.hpp"
 
 namespace ces::exporter {
@@ -224,95 +223,40 @@ struct StepRead {
   std::string file_unit;
 };
 
-// What the child read, as bytes for the parent: numbers as this machine
-// holds them (both ends are the same program), strings and lists counted.
-class Packer {
- public:
-  template <class T>
-  void put(const T& value) {
-    static_assert(std::is_arithmetic_v<T>);
-    bytes.append(reinterpret_cast<const char*>(&value), sizeof value);
-  }
-  void put(const std::string& s) {
-    put(std::uint64_t(s.size()));
-    bytes += s;
-  }
-  void put(const Vec3& v) {
-    for (int i = 0; i < 3; ++i) put(v[i]);
-  }
-  void put(const Part& p) {
-    put(p.name);
-    put(p.instance);
-    put(std::uint64_t(p.mesh.vertices.size()));
-    for (const Vec3& v : p.mesh.vertices) put(v);
-    put(std::uint64_t(p.mesh.triangles.size()));
-    for (const auto& t : p.mesh.triangles)
-      for (std::uint32_t i : t) put(i);
-    put(char(p.exact_cylinder.has_value()));
-    if (!p.exact_cylinder) return;
-    const ExactCylinder& e = *p.exact_cylinder;
-    put(e.cylinder.axis);
-    put(e.cylinder.center);
-    put(e.cylinder.radius);
-    put(e.cylinder.length);
-    put(e.faces);
-    put(e.other_cylinders);
-  }
+// A part as bytes for the parent (both ends are the same program), and
+// back.
+void put(ByteWriter& out, const Part& p) {
+  out.text(p.name);
+  out.text(p.instance);
+  out.values(p.mesh.vertices);
+  out.values(p.mesh.triangles);
+  out.value(char(p.exact_cylinder.has_value()));
+  if (!p.exact_cylinder) return;
+  const ExactCylinder& e = *p.exact_cylinder;
+  out.value(e.cylinder.axis);
+  out.value(e.cylinder.center);
+  out.value(e.cylinder.radius);
+  out.value(e.cylinder.length);
+  out.value(e.faces);
+  out.value(e.other_cylinders);
+}
 
-  std::string bytes;
-};
-
-class Unpacker {
- public:
-  explicit Unpacker(const std::string& bytes) : bytes_(bytes) {}
-
-  template <class T>
-  T get() {
-    static_assert(std::is_arithmetic_v<T>);
-    T value{};
-    std::memcpy(&value, take(sizeof value), sizeof value);
-    return value;
-  }
-  std::string text() {
-    const auto n = get<std::uint64_t>();
-    return std::string(take(n), n);
-  }
-  Vec3 vec() {
-    Vec3 v;
-    for (int i = 0; i < 3; ++i) v[i] = get<double>();
-    return v;
-  }
-  Part part() {
-    Part p;
-    p.name = text();
-    p.instance = text();
-    p.mesh.vertices.resize(get<std::uint64_t>());
-    for (Vec3& v : p.mesh.vertices) v = vec();
-    p.mesh.triangles.resize(get<std::uint64_t>());
-    for (auto& t : p.mesh.triangles)
-      for (std::uint32_t& i : t) i = get<std::uint32_t>();
-    if (!get<char>()) return p;
-    ExactCylinder& e = p.exact_cylinder.emplace();
-    e.cylinder.axis = vec();
-    e.cylinder.center = vec();
-    e.cylinder.radius = get<double>();
-    e.cylinder.length = get<double>();
-    e.faces = get<int>();
-    e.other_cylinders = get<int>();
-    return p;
-  }
-  bool done() const { return at_ == bytes_.size(); }
-
- private:
-  const char* take(std::size_t n) {
-    if (n > bytes_.size() - at_) throw std::runtime_error("the STEP reader's answer is cut short");
-    at_ += n;
-    return bytes_.data() + at_ - n;
-  }
-
-  const std::string& bytes_;
-  std::size_t at_ = 0;
-};
+Part get_part(ByteReader& in) {
+  Part p;
+  p.name = in.text();
+  p.instance = in.text();
+  in.values(p.mesh.vertices);
+  in.values(p.mesh.triangles);
+  if (!in.value<char>()) return p;
+  ExactCylinder& e = p.exact_cylinder.emplace();
+  in.value(e.cylinder.axis);
+  in.value(e.cylinder.center);
+  in.value(e.cylinder.radius);
+  in.value(e.cylinder.length);
+  in.value(e.faces);
+  in.value(e.other_cylinders);
+  return p;
+}
 
 // The child's answer: 'P' and the parts, or 'E' and the error message.
 std::string answer(const std::string& path, const StepOptions& options) {
@@ -320,12 +264,12 @@ std::string answer(const std::string& path, const StepOptions& options) {
     silence_occt();
     StepRead read;
     read.parts = read_document(path, options, read.file_unit);
-    Packer p;
-    p.put('P');
-    p.put(read.file_unit);
-    p.put(std::uint64_t(read.parts.size()));
-    for (const Part& part : read.parts) p.put(part);
-    return std::move(p.bytes);
+    ByteWriter out;
+    out.value('P');
+    out.text(read.file_unit);
+    out.value(std::uint64_t(read.parts.size()));
+    for (const Part& part : read.parts) put(out, part);
+    return std::move(out).take();
   } catch (const InputError& e) {
     return std::string("E") + e.what();
   } catch (const Standard_Failure& e) {
@@ -339,10 +283,8 @@ std::string answer(const std::string& path, const StepOptions& options) {
 // returns it; a child that dies or runs past them is an InputError naming
 // the file.
 std::string answer_in_child(const std::string& path, const StepOptions& options) {
-  const double file_bytes = double(std::filesystem::file_size(path));
-  const IsolationLimits limits{4.0 * (1 << 30) + 16.0 * file_bytes, 120.0};
   try {
-    return run_isolated([&] { return answer(path, options); }, limits);
+    return run_isolated([&] { return answer(path, options); }, reader_limits(path));
   } catch (const std::runtime_error& e) {
     throw InputError("cannot read " + path + ": " + e.what() +
                      ", expected a well-formed STEP file (a reference to a missing entity, an "
@@ -353,13 +295,14 @@ std::string answer_in_child(const std::string& path, const StepOptions& options)
 
 StepRead unpack(const std::string& bytes, const std::string& path) {
   if (bytes.front() == 'E') throw InputError(bytes.substr(1));
-  Unpacker u(bytes);
-  u.get<char>();
+  ByteReader in(bytes);
+  in.value<char>();
   StepRead read;
-  read.file_unit = u.text();
-  read.parts.resize(u.get<std::uint64_t>());
-  for (Part& p : read.parts) p = u.part();
-  if (!u.done()) throw std::runtime_error("the STEP reader's answer for " + path + " is too long");
+  read.file_unit = in.text();
+  const auto parts = in.value<std::uint64_t>();
+  for (std::uint64_t k = 0; k < parts; ++k) read.parts.push_back(get_part(in));
+  if (!in.at_end())
+    throw std::runtime_error("the STEP reader's answer for " + path + " is too long");
   return read;
 }
 

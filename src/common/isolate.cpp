@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <csignal>
 #include <cstring>
+#include <filesystem>
 #include <new>
 #include <stdexcept>
 
@@ -85,6 +86,10 @@ std::string stopped_by(int signal, const IsolationLimits& limits) {
 }
 
 }  // namespace
+
+IsolationLimits reader_limits(const std::string& path) {
+  return {4.0 * (1 << 30) + 16.0 * double(std::filesystem::file_size(path)), 120.0};
+}
 
 std::string run_isolated(const std::function<std::string()>& work, const IsolationLimits& limits) {
   int pipe_fds[2];

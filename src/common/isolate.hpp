@@ -11,6 +11,11 @@ struct IsolationLimits {
   double cpu_seconds = 0.0;  // CPU time of the child
 };
 
+// The limits for a reader of the file at `path`: 4 GiB and 16 bytes per
+// byte of the file, 120 s of CPU, which a reader of the largest file a
+// scene or an export may name stays inside.
+IsolationLimits reader_limits(const std::string& path);
+
 // Runs `work` in a child process (fork) with `limits` and returns what it
 // returned. What ends the child early becomes a std::runtime_error here
 // that says what it was: an exception of `work` (its message), memory past

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
 #include <new>
 #include <numeric>
@@ -13,6 +12,7 @@
 #include <tuple>
 
 #include "common/isolate.hpp"
+#include "common/serial.hpp"
 #include "geometry/mesh_header.hpp"
 
 #include <assimp/Importer.hpp>
@@ -389,44 +389,29 @@ RawMesh read_scene(const std::string& path, double scale) {
   return raw;
 }
 
-// A mesh as bytes, and back: the counts, then the vertices and triangles
-// as they lie in memory.
+// A mesh as bytes, and back.
 std::string to_bytes(const RawMesh& m) {
-  const std::uint64_t counts[2] = {m.vertices.size(), m.triangles.size()};
-  std::string bytes(reinterpret_cast<const char*>(counts), sizeof counts);
-  bytes.append(reinterpret_cast<const char*>(m.vertices.data()), m.vertices.size() * sizeof(Vec3));
-  bytes.append(reinterpret_cast<const char*>(m.triangles.data()),
-               m.triangles.size() * sizeof(m.triangles[0]));
-  return bytes;
+  ByteWriter out;
+  out.values(m.vertices);
+  out.values(m.triangles);
+  return std::move(out).take();
 }
 
 RawMesh from_bytes(const std::string& bytes) {
-  std::uint64_t counts[2] = {0, 0};
-  if (bytes.size() < sizeof counts) throw std::runtime_error("its reader's result is cut short");
-  std::memcpy(counts, bytes.data(), sizeof counts);
+  ByteReader in(bytes);
   RawMesh m;
-  const std::size_t vertex_bytes = sizeof(Vec3), triangle_bytes = sizeof(m.triangles[0]);
-  if (counts[0] > TriMesh::kMaxIndex || counts[1] > TriMesh::kMaxIndex ||
-      bytes.size() != sizeof counts + counts[0] * vertex_bytes + counts[1] * triangle_bytes)
-    throw std::runtime_error("its reader's result is not the size it says");
-  m.vertices.resize(counts[0]);
-  m.triangles.resize(counts[1]);
-  std::memcpy(static_cast<void*>(m.vertices.data()), bytes.data() + sizeof counts,
-              counts[0] * vertex_bytes);
-  std::memcpy(m.triangles.data(), bytes.data() + sizeof counts + counts[0] * vertex_bytes,
-              counts[1] * triangle_bytes);
+  in.values(m.vertices);
+  in.values(m.triangles);
+  if (!in.at_end()) throw std::runtime_error("its reader's result is not the size it says");
   return m;
 }
 
 // assimp reads in a child process: a file made to stop it (an assertion
-// on counts a header promises and the data lacks) or to make it allocate
-// what a header's counts say (a PLY of 170 bytes promising 5e8 vertices)
-// ends the child, within limits that a mesh from the largest data file a
-// scene may name stays inside, and the error names the file.
+// on counts a header promises and the data lacks) or to exhaust it ends
+// the child, not the run, and the error names the file.
 RawMesh read_isolated(const std::string& path, double scale) {
-  const double file_bytes = double(std::filesystem::file_size(path));
-  const IsolationLimits limits{4.0 * (1 << 30) + 16.0 * file_bytes, 120.0};
-  return from_bytes(run_isolated([&] { return to_bytes(read_scene(path, scale)); }, limits));
+  return from_bytes(
+      run_isolated([&] { return to_bytes(read_scene(path, scale)); }, reader_limits(path)));
 }
 
 // Exact weld: assimp welds within each mesh, this also welds across meshes.

@@ -218,10 +218,8 @@ class ElectrostaticsCompiler {
   void warn_uncovered(const Node& file, const fields::GridField& grid, const fields::Drum& drum) {
     constexpr int kSamples = 360;
     const auto& axes = grid.axes();
-    auto inside = [&](int a, double x) {
-      return x >= axes[a].origin &&
-             x <= axes[a].origin + double(axes[a].count - 1) * axes[a].spacing;
-    };
+    auto last = [&](int a) { return axes[a].origin + double(axes[a].count - 1) * axes[a].spacing; };
+    auto inside = [&](int a, double x) { return x >= axes[a].origin && x <= last(a); };
     int covered = 0;
     for (int k = 0; k < kSamples; ++k) {
       const double angle = 2.0 * kPi * k / kSamples;
@@ -229,10 +227,7 @@ class ElectrostaticsCompiler {
                  inside(1, drum.radius * std::sin(angle)) && inside(2, 0.0);
     }
     if (covered == kSamples) return;
-    auto span = [&](int a) {
-      return format(axes[a].origin) + " to " +
-             format(axes[a].origin + double(axes[a].count - 1) * axes[a].spacing);
-    };
+    auto span = [&](int a) { return format(axes[a].origin) + " to " + format(last(a)); };
     diags_.warning(file, "the field grid covers " + std::to_string(100 * covered / kSamples) +
                              " % of the drum's surface (x " + span(0) + ", y " + span(1) + ", z " +
                              span(2) + " m): outside it the field is 0");
