@@ -106,8 +106,6 @@ void load(ByteReader& in, State& s) {
 
 namespace {
 
-bool finite(const Vec3& v) { return v.allFinite(); }
-
 // What is wrong with particle i of a state read back, or null.
 const char* unlike_model(const Model& model, const Particles& p, std::size_t i) {
   if (p.shape[i] < 0 || std::size_t(p.shape[i]) >= model.shapes.size()) return "its shape";
@@ -116,8 +114,9 @@ const char* unlike_model(const Model& model, const Particles& p, std::size_t i) 
   if (p.carrier[i] != Particles::kAwake &&
       (p.carrier[i] < 0 || std::size_t(p.carrier[i]) >= model.bodies.size()))
     return "the body carrying it";
-  if (!finite(p.position[i]) || !finite(p.velocity[i]) || !finite(p.angular_velocity[i]) ||
-      !p.orientation[i].coeffs().allFinite() || std::abs(p.orientation[i].norm() - 1.0) > 1e-6)
+  if (!p.position[i].allFinite() || !p.velocity[i].allFinite() ||
+      !p.angular_velocity[i].allFinite() || !p.orientation[i].coeffs().allFinite() ||
+      std::abs(p.orientation[i].norm() - 1.0) > 1e-6)
     return "its motion";
   if (!(p.mass[i] > 0.0) || !std::isfinite(p.mass[i]) || !(p.scale[i] > 0.0) ||
       !std::isfinite(p.scale[i]))

@@ -90,6 +90,13 @@ Mark mark_at(const std::string& text, std::size_t offset, const std::string& fil
   return {file, int(std::count(text.begin(), at, '\n')) + 1, int(at - line_start) + 1};
 }
 
+// A byte as messages show it: "0x1b".
+std::string hex_byte(char c) {
+  char byte[8];
+  std::snprintf(byte, sizeof byte, "0x%02x", static_cast<unsigned char>(c));
+  return byte;
+}
+
 class Converter {
  public:
   Converter(const std::string& text, const std::string& file, Budget& budget, Diagnostics& diags)
@@ -195,10 +202,8 @@ class Converter {
   bool printable(const std::string& text, const Mark& at, const std::string& path) {
     const auto bad = control_character(text);
     if (!bad) return true;
-    char byte[8];
-    std::snprintf(byte, sizeof byte, "0x%02x", static_cast<unsigned char>(text[*bad]));
     diags_.error(at, path,
-                 std::string("a control character (byte ") + byte +
+                 "a control character (byte " + hex_byte(text[*bad]) +
                      ", written as an escape), expected printable text");
     return false;
   }
@@ -396,10 +401,8 @@ std::optional<Node> parse(const std::string& text, const std::string& file, bool
     return std::nullopt;
   }
   const auto bad_byte = [&](std::size_t at, const char* what, const char* expected) {
-    char byte[8];
-    std::snprintf(byte, sizeof byte, "0x%02x", static_cast<unsigned char>(text[at]));
     diags.error(mark_at(text, at, file), "",
-                std::string(what) + " (byte " + byte + "), expected " + expected);
+                std::string(what) + " (byte " + hex_byte(text[at]) + "), expected " + expected);
   };
   if (const auto at = invalid_utf8(text)) {
     bad_byte(*at, "invalid UTF-8", "UTF-8 text");
