@@ -471,6 +471,40 @@ TEST(HostileSemantics, BareNumbersOnlyWhereUnambiguous) {
              "expected an angle (rad)");
 }
 
+// Magnitudes no separator has, each refused at its line with its kind's
+// bound (units::Kind::largest): they ran to plausible-looking products. A
+// value at the bound loads.
+TEST(HostileSemantics, MagnitudesBeyondAnySeparatorAreRefusedAtTheirLine) {
+  const std::string scene = std::string(kMinimal) +
+                            "materials: {steel: {}}\n"
+                            "bodies:\n"
+                            "  - name: drum\n"
+                            "    geometry: {cylinder: {radius: 0.1 m, length: LENGTH}}\n"
+                            "    material: steel\n"
+                            "    motion: {rotation: {axis: [0, 0, 1], speed: SPEED}}\n"
+                            "gravity: [0, GRAVITY, 0]\n";
+  const auto with = [&](const std::string& length, const std::string& speed,
+                        const std::string& gravity) {
+    std::string text = scene;
+    text.replace(text.find("LENGTH"), 6, length);
+    text.replace(text.find("SPEED"), 5, speed);
+    text.replace(text.find("GRAVITY"), 7, gravity);
+    return text;
+  };
+  EXPECT_NO_THROW(load_text(with("100 km", "1e5 rad/s", "-1e4"), "/tmp/largest.yaml"));
+  expect_one(text_errors(with("4e100", "1 rpm", "-9.81"), "long.yaml"),
+             "long.yaml:6:50: bodies[0].geometry.cylinder.length: 4e100 is 4e+100 m, expected a "
+             "length of at most 100000 m in magnitude");
+  expect_one(text_errors(with("1 m", "1e12 rpm", "-9.81"), "fast.yaml"),
+             "fast.yaml:8:49: bodies[0].motion.rotation.speed: '1e12 rpm' is 1.0472e+11 rad/s, "
+             "expected an angular speed of at most 100000 rad/s in magnitude");
+  expect_one(text_errors(with("1 m", "1 rpm", "-1e30"), "heavy.yaml"),
+             "heavy.yaml:9:14: gravity[1]: -1e30 is -1e+30 m/s^2, expected an acceleration of at "
+             "most 10000 m/s^2 in magnitude");
+  expect_one(text_errors("ces_sim: 1\ntime: {step: 1 ms, end: 1e9 s}\n", "long_run.yaml"),
+             "long_run.yaml:2:25: time.end: '1e9 s' is 1e+09 s, expected a time of at most");
+}
+
 // A particle lighter than the balance's unit or heavier than its bound
 // is refused at the mix item, not at the step that draws one.
 TEST(HostileSemantics, ParticleMassesOutsideTheBalanceAreRefusedAtTheirLine) {

@@ -195,8 +195,8 @@ const Expected kExpectations[] = {
     {"feed_mass_rate_too_high.yaml", "feed_mass_rate_too_high.yaml", 14,
      "feeds[1].rate: feed 'dust' makes about 4263"},
     {"feed_rate_too_high.yaml", "feed_rate_too_high.yaml", 9,
-     "feeds[0].rate: feed 'feeder' makes about 100000000000 particles over the run (all feeds "
-     "100000000000), expected at most 10000000 in all"},
+     "feeds[0].rate: feed 'feeder' makes about 100000000 particles over the run (all feeds "
+     "100000000), expected at most 10000000 in all"},
     {"include_outside.yaml", "include_outside.yaml", 4,
      "include: '/etc/passwd' is outside the scene's folder"},
     {"include_outside.yaml", "include_outside.yaml", 5,

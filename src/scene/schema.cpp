@@ -140,6 +140,20 @@ void add_defaults(Node& n, const ojson* s) {
   }
 }
 
+// A value past its kind's largest magnitude is refused at its line, before
+// the bounds of its key: "'1e12 rpm' is 1.05e+11 rad/s, expected an angular
+// speed of at most 1e+05 rad/s in magnitude".
+void check_magnitude(Node& n, double si, const units::Kind& kind, Diagnostics& diags) {
+  if (std::abs(si) <= kind.largest) return;
+  std::ostringstream got, most;  // as docs/scene-format.md's table writes the bound
+  got << si;
+  most << kind.largest;
+  const std::string value = n.is_string() ? "'" + excerpt(n.text) + "'" : describe(n);
+  diags.error(n, value + " is " + got.str() + " " + std::string(kind.si) + ", expected " +
+                     std::string(kind.label) + " of at most " + most.str() + " " +
+                     std::string(kind.si) + " in magnitude");
+}
+
 void convert_quantity(Node& n, const ojson* s, Diagnostics& diags) {
   if (!s || n.kind != Node::Kind::Scalar || n.reported) return;
   const auto kinds = unit_kinds(*s);
@@ -151,6 +165,8 @@ void convert_quantity(Node& n, const ojson* s, Diagnostics& diags) {
     if (required && required->get<bool>() && n.number() != 0.0)
       diags.error(n,
                   "a number without a unit is ambiguous here, expected " + describe_kinds(kinds));
+    else if (kinds.size() == 1)
+      check_magnitude(n, n.number(), *kinds[0], diags);
     return;
   }
   if (!n.is_string()) return;  // booleans: the schema reports the type
@@ -162,6 +178,7 @@ void convert_quantity(Node& n, const ojson* s, Diagnostics& diags) {
   const auto& q = std::get<units::Quantity>(parsed);
   for (const units::Kind* k : kinds) {
     if (k->dimension == q.dimension) {
+      check_magnitude(n, q.value, *k, diags);
       n.scalar = q.value;
       n.dimension = k->name;
       return;
@@ -227,11 +244,13 @@ std::string violated_bound(const Node& n, const ojson& s) {
   const double x = n.number();
   const auto kinds = unit_kinds(s);
   const std::string unit = kinds.size() == 1 ? " " + std::string(kinds[0]->si) : "";
+  // Integer bounds as written: 2^63 - 1 is not a double.
+  const auto text = [&](const ojson& b) {
+    return (b.is_number_integer() ? b.dump() : format_number(b.get<double>())) + unit;
+  };
   const auto bound = [&](const char* word, const char* op, auto broken) -> std::string {
     const ojson* b = keyword(s, word);
-    return b && broken(x, b->get<double>())
-               ? std::string(op) + " " + format_number(b->get<double>()) + unit
-               : "";
+    return b && broken(x, b->get<double>()) ? std::string(op) + " " + text(*b) : "";
   };
   for (const std::string& b :
        {bound("exclusiveMinimum", ">", [](double v, double m) { return !(v > m); }),
@@ -239,7 +258,15 @@ std::string violated_bound(const Node& n, const ojson& s) {
         bound("exclusiveMaximum", "<", [](double v, double m) { return !(v < m); }),
         bound("maximum", "<=", [](double v, double m) { return !(v <= m); })})
     if (!b.empty()) return b;
-  return "a value in range";
+  // A bound that rounds to the value as a double: name them all.
+  std::string all;
+  for (const auto& [word, op] : {std::pair{"exclusiveMinimum", ">"},
+                                 {"minimum", ">="},
+                                 {"exclusiveMaximum", "<"},
+                                 {"maximum", "<="}})
+    if (const ojson* b = keyword(s, word))
+      all += (all.empty() ? "" : " and ") + std::string(op) + " " + text(*b);
+  return all.empty() ? "a value in range" : all;
 }
 
 std::string count_phrase(const ojson& s, const char* min_word, const char* max_word,

@@ -1,9 +1,11 @@
 #include "scene/schema_doc.hpp"
 
+#include <sstream>
 #include <string_view>
 #include <vector>
 
 #include "scene/schema.hpp"
+#include "scene/units.hpp"
 
 namespace ces::scene {
 namespace {
@@ -29,6 +31,19 @@ std::string referenced(const ojson& s) {
 // "type": "object" (a type can also be a list of types).
 bool has_type(const ojson& s, const char* type) {
   return s.contains("type") && s["type"].is_string() && s["type"] == type;
+}
+
+// "1000 m", or "100000 rad/s; 1000 m/s" for a key of two kinds.
+std::string largest(const ojson& s) {
+  const ojson& unit = s["x-unit"];
+  std::string text;
+  for (const ojson& name : unit.is_array() ? unit : ojson::array({unit})) {
+    const units::Kind* k = units::find_kind(name.get<std::string>());
+    std::ostringstream bound;
+    bound << k->largest;
+    text += (text.empty() ? "" : "; ") + bound.str() + " " + std::string(k->si);
+  }
+  return text;
 }
 
 bool is_quantity(const std::string& name) {
@@ -162,9 +177,13 @@ std::string schema_markdown() {
   out += "\n## Definitions\n";
   for (const auto& [name, s] : root["definitions"].items())
     if (has_type(s, "object") && s.contains("properties")) section(out, name, s);
-  out += "\n## Quantities\n\n| quantity | meaning |\n|---|---|\n";
+  out +=
+      "\n## Quantities\n\nA value past its kind's largest magnitude is refused: no separator "
+      "has it, and no step resolves it.\n\n| quantity | meaning | largest magnitude |\n"
+      "|---|---|---|\n";
   for (const auto& [name, s] : root["definitions"].items())
-    if (s.contains("x-unit")) out += "| " + name + " | " + cell(s.value("description", "")) + " |\n";
+    if (s.contains("x-unit"))
+      out += "| " + name + " | " + cell(s.value("description", "")) + " | " + largest(s) + " |\n";
   return out;
 }
 

@@ -30,6 +30,13 @@ struct Kind {
   std::string_view si;       // "kg/s"
   std::string_view example;  // "20 g/s"
   Dimension dimension;
+  // The largest magnitude a scene may state, in SI. Like scene/limits.hpp's
+  // bounds it sits far above any real separator, and above the values
+  // users give on purpose (a plant's site coordinates, 100 km; a body
+  // heavy enough not to move): a value past it is a typo or hostile input,
+  // and no step the engine takes resolves it (1e12 rpm, gravity of 1e30
+  // m/s^2, -1e12 kV ran to plausible-looking products).
+  double largest = 0.0;
 };
 
 // nullptr for an unknown name.
