@@ -178,6 +178,16 @@ TEST(Cli, BadArgumentsExitTwo) {
   EXPECT_EQ(ces_sim(scene("tiny.yaml") + " --unset no.such.key").code, 2);
   EXPECT_EQ(ces_sim(scene("tiny.yaml") + " --threads 100000").code, 2);
   EXPECT_EQ(ces_sim("compare /nonexistent/a /nonexistent/b").code, 2);
+  // An output folder's path through a file is the user's to change, not a
+  // failed run.
+  const fs::path file = fresh_dir("out_is_a_file") / "file";
+  std::ofstream(file) << "mine\n";
+  for (const fs::path& out : {file, file / "run"}) {
+    const Outcome o = ces_sim(scene("tiny.yaml") + " -q -o " + out.string());
+    EXPECT_EQ(o.code, 2) << o.err;
+    EXPECT_NE(o.err.find(file.string() + " is not a folder"), std::string::npos) << o.err;
+  }
+  EXPECT_EQ(read_text(file), "mine\n");
 }
 
 // A mistyped command is named as such, not taken for a scene followed by
@@ -234,10 +244,13 @@ TEST(Cli, NumbersOutOfRangeAreRefusedAsWritten) {
       {scene("tiny.yaml") + " --threads 0x10",
        "--threads: got '0x10', expected a whole number "
        "from 1 to 1024"},
-      {scene("tiny.yaml") + " --seed -1", "--seed: got '-1', expected a whole number >= 0"},
-      {scene("tiny.yaml") + " --seed 010", "--seed: got '010', expected a whole number >= 0"},
-      {scene("tiny.yaml") + " --seed 18446744073709551616",
-       "--seed: got '18446744073709551616', expected a whole number >= 0"},
+      {scene("tiny.yaml") + " --seed -1",
+       "--seed: got '-1', expected a whole number from 0 to 9223372036854775807"},
+      {scene("tiny.yaml") + " --seed 010",
+       "--seed: got '010', expected a whole number from 0 to 9223372036854775807"},
+      {scene("tiny.yaml") + " --seed 9223372036854775808",
+       "--seed: got '9223372036854775808', expected a whole number from 0 to "
+       "9223372036854775807"},
       {"compare a b --tol-count 1e3", "--tol-count: got '1e3', expected a whole number >= 0"},
   };
   for (const auto& [args, message] : cases) {

@@ -161,7 +161,7 @@ void add_scene_options(CLI::App& app, Args& args) {
       ->type_name("K")
       ->allow_extra_args(false);
   app.add_option("--seed", args.seed, "Random seed (wins over the scene's)")
-      ->check(whole_number(0));
+      ->check(whole_number(0, std::numeric_limits<std::int64_t>::max()));  // the scene's bound
   app.add_option("--threads", args.threads, "Worker threads")
       ->check(whole_number(1, 1024));
   app.add_option("--include-path", args.include_paths,
@@ -229,8 +229,22 @@ int ended(const ces::RunResult& result) {
   return kRunFailed;
 }
 
+// A file where the output folder goes is the user's to move, not a failed
+// run: refused as bad input before the run starts.
+void check_out_dir(const Args& args, const ces::Simulation& sim) {
+  const bool given = !args.out_dir.empty();
+  const std::filesystem::path dir = given ? args.out_dir : sim.output.dir;
+  std::filesystem::path made = dir;  // the part of the path that exists
+  std::error_code ec;
+  while (!std::filesystem::exists(made, ec) && made.has_relative_path()) made = made.parent_path();
+  if (made.empty() || std::filesystem::is_directory(made, ec)) return;
+  throw UsageError(std::string(given ? "-o " : "output.dir ") + dir.string() + ": " +
+                   made.string() + " is not a folder, expected a folder's path (made if missing)");
+}
+
 int run_scene(const Args& args) {
   const ces::Simulation sim = load_scene(args);
+  check_out_dir(args, sim);
   return ended(ces::run(sim, run_options(args)));
 }
 
