@@ -568,6 +568,27 @@ TEST(Cli, CompareRefusesTablesItDoesNotKnow) {
   crossings.insert(row, "1,0.1,0,0,0,0,0,0,far,0.001,1e-06,copper,0,tray,0,near\n");
   std::ofstream(b / "crossings.csv") << crossings;
   expect_refused((b / "crossings.csv").string() + ":2: along_m is not a finite number: 'far'");
+  fs::copy_file(a / "crossings.csv", b / "crossings.csv", fs::copy_options::overwrite_existing);
+  // A count ces-sim cannot have written, and names or headers whose
+  // escape sequences would reach the terminal: refused, never echoed.
+  const std::string bins = read_text(a / "bins.csv");
+  const auto with_row2 = [&](int field, const std::string& value) {
+    std::string text = bins;
+    std::size_t at = text.find('\n') + 1;
+    for (int f = 0; f < field; ++f) at = text.find(',', at) + 1;
+    text.replace(at, text.find_first_of(",\n", at) - at, value);
+    std::ofstream(b / "bins.csv") << text;
+  };
+  with_row2(5, "-5");
+  expect_refused((b / "bins.csv").string() + ":2: count is -5, expected a whole count >= 0");
+  with_row2(5, "1.5");
+  expect_refused((b / "bins.csv").string() + ":2: count is 1.5, expected a whole count >= 0");
+  with_row2(4, "cop\x1b[2Jper");
+  expect_refused((b / "bins.csv").string() + ":2: material holds a control character");
+  std::ofstream(b / "bins.csv") << "coll\x1b[2Jector\n";
+  expect_refused("found text with control characters");
+  const Outcome o = ces_sim("compare " + a.string() + " " + b.string());
+  EXPECT_EQ(o.err.find('\x1b'), std::string::npos);
 }
 
 // A products.csv from before the grades' and recoveries' standard errors

@@ -34,6 +34,19 @@ std::ifstream open_table(const std::filesystem::path& file) {
 constexpr std::string_view kProductsHeaderWithoutErrors =
     "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery";
 
+bool has_control_character(std::string_view s) {
+  return std::any_of(s.begin(), s.end(), [](unsigned char b) { return b < 0x20 || b == 0x7F; });
+}
+
+// A file's text as a message quotes it: never its control characters (an
+// escape sequence would act on the terminal), never more than a short line.
+std::string shown_text(std::string_view text) {
+  constexpr std::size_t kShown = 80;
+  if (has_control_character(text)) return "text with control characters";
+  if (text.size() > kShown) return "'" + std::string(text.substr(0, kShown)) + "...'";
+  return "'" + std::string(text) + "'";
+}
+
 // A cell of a table read_tally_table checked.
 double number(const std::string& s) { return *csv::number(s); }
 
@@ -144,6 +157,25 @@ void compare_tables(const std::filesystem::path& dir_a, const char* file, const 
     r.notes.push_back(std::move(unshared));
 }
 
+// A cell ces-sim cannot have written: its names are scene names, which
+// hold no control characters, and its counts and masses are not negative,
+// the counts whole. The message never echoes the cell's bytes.
+void check_tally_cell(const Table& t, std::size_t i, std::size_t c, bool key,
+                      const std::filesystem::path& file) {
+  const std::string& cell = t.rows[i][c];
+  std::string wrong;
+  if (key) {
+    if (has_control_character(cell)) wrong = "holds a control character, expected a name";
+  } else if (const double x = t.number(i, c, file); t.header[c] == "count") {
+    if (!(x >= 0.0 && x == std::floor(x))) wrong = "is " + cell + ", expected a whole count >= 0";
+  } else if (t.header[c] == "mass_kg" && !(x >= 0.0)) {
+    wrong = "is " + cell + ", expected a mass >= 0";
+  }
+  if (!wrong.empty())
+    throw IoError(file.string() + ":" + std::to_string(t.lines[i]) + ": " + t.header[c] + " " +
+                  wrong + " (not a table ces-sim wrote)");
+}
+
 // bins.csv or products.csv: every cell but those naming its row a number.
 Table read_tally_table(const std::filesystem::path& file,
                        std::initializer_list<std::string_view> accepted_headers) {
@@ -151,7 +183,7 @@ Table read_tally_table(const std::filesystem::path& file,
   const std::vector<std::size_t> keys = key_columns(t);
   for (std::size_t i = 0; i < t.rows.size(); ++i)
     for (std::size_t c = 0; c < t.header.size(); ++c)
-      if (std::find(keys.begin(), keys.end(), c) == keys.end()) t.number(i, c, file);
+      check_tally_cell(t, i, c, std::find(keys.begin(), keys.end(), c) != keys.end(), file);
   return t;
 }
 
@@ -184,7 +216,7 @@ double Table::number(std::size_t row, std::size_t column, const std::filesystem:
   const std::string& cell = rows[row][column];
   if (const auto v = csv::number(cell)) return *v;
   throw IoError(file.string() + ":" + std::to_string(lines[row]) + ": " + header[column] +
-                " is not a finite number: '" + cell + "'");
+                " is not a finite number: " + shown_text(cell));
 }
 
 std::size_t Table::column(const std::string& name, const std::filesystem::path& file) const {
@@ -207,8 +239,8 @@ Table read_table(const std::filesystem::path& file,
     std::string expected;
     for (std::string_view h : accepted_headers)
       expected += (expected.empty() ? "" : " or ") + std::string(h);
-    throw IoError(file.string() + ":1: expected the header " + expected + ", found '" +
-                  std::string(csv::trim(csv::without_bom(line))) + "'");
+    throw IoError(file.string() + ":1: expected the header " + expected + ", found " +
+                  shown_text(csv::trim(csv::without_bom(line))));
   }
   for (int n = 2; std::getline(in, line); ++n) {
     if (csv::trim(line).empty()) continue;
