@@ -292,8 +292,8 @@ TEST(Cli, IncludePathNamesAnotherFolderForIncludes) {
   const std::string scene = (scenes / "validation" / "ces_feedrate.yaml").string();
   const Outcome refused = ces_sim("validate " + scene);
   EXPECT_EQ(refused.code, 2);
-  EXPECT_NE(refused.err.find("include: '../machines/ces_machine.yaml' is outside the scene's "
-                             "folder"),
+  EXPECT_NE(refused.err.find("include: '../machines/ces_machine.yaml' is outside the folder of "
+                             "ces_feedrate.yaml"),
             std::string::npos)
       << refused.err;
   const Outcome ok = ces_sim("validate " + scene + " --include-path " + scenes.string());

@@ -155,7 +155,8 @@ TEST(ExportBadInput, IncludesOutsideTheAnnotationsFolder) {
     const Exported e =
         run(work / "cad", "include: " + name + "\n" + machine_annotations("[0, 0, -1]"), own);
     EXPECT_EQ(e.code, 2) << name;
-    EXPECT_NE(e.err.find("annotations.yaml:1:10: include: '" + name + "' is outside"),
+    EXPECT_NE(e.err.find("annotations.yaml:1:10: include: '" + name +
+                         "' is outside the folder of annotations.yaml"),
               std::string::npos)
         << e.err;
     EXPECT_EQ(e.err.find("hunter2"), std::string::npos) << e.err;

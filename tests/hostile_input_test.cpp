@@ -111,9 +111,9 @@ TEST(HostileIncludes, SymlinksAreResolvedBeforeTheCheck) {
 
   const std::string base = std::string(kMinimal) + "include: ";
   expect_one(load_errors(write(dir / "scene" / "a.yaml", base + "link_out.yaml\n")),
-             "include: 'link_out.yaml' is outside the scene's folder");
+             "include: 'link_out.yaml' is outside the folder of a.yaml");
   expect_one(load_errors(write(dir / "scene" / "b.yaml", base + "sub/out/secret.yaml\n")),
-             "include: 'sub/out/secret.yaml' is outside the scene's folder");
+             "include: 'sub/out/secret.yaml' is outside the folder of b.yaml");
   EXPECT_EQ(load(write(dir / "scene" / "c.yaml", base + "link_in.yaml\n").string()).seed, 5u);
 
   LoadOptions options;
@@ -133,11 +133,11 @@ TEST(HostileIncludes, NestedIncludesAndMissingFilesOutsideAreRefusedAlike) {
   write(dir / "elsewhere" / "b.yaml", "seed: 3\n");
   const auto nested = load_errors(
       write(dir / "scene" / "main.yaml", std::string(kMinimal) + "include: parts/a.yaml\n"));
-  expect_one(nested, "include: '../../elsewhere/b.yaml' is outside the scene's folder");
+  expect_one(nested, "include: '../../elsewhere/b.yaml' is outside the folder of");
   EXPECT_EQ(nested[0].file, (dir / "scene" / "parts" / "a.yaml").string());
   const auto missing = load_errors(
       write(dir / "scene" / "m.yaml", std::string(kMinimal) + "include: ../elsewhere/none.yaml\n"));
-  expect_one(missing, "include: '../elsewhere/none.yaml' is outside the scene's folder");
+  expect_one(missing, "include: '../elsewhere/none.yaml' is outside the folder of");
 }
 
 // A file in the scene's tree that is not a scene: the message quotes at

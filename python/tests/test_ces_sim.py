@@ -226,7 +226,7 @@ class ErrorTest(Case):
         scene = SOURCE / "scenes" / "validation" / "ces_feedrate.yaml"
         with self.assertRaises(ces_sim.SceneError) as caught:
             ces_sim.load(scene)
-        self.assertIn("outside the scene's folder", str(caught.exception))
+        self.assertIn("outside the folder of ces_feedrate.yaml", str(caught.exception))
         loaded = ces_sim.load(scene, include_paths=[SOURCE / "scenes"])
         self.assertEqual(loaded.name, "ces_feedrate")
 

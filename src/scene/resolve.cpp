@@ -177,8 +177,9 @@ class Includer {
     if (std::none_of(roots_.begin(), roots_.end(),
                      [&](const fs::path& root) { return is_within(target, root); }))
       return refuse("'" + excerpt(name.string(), limits::kPathBytes) +
-                    "' is outside the scene's folder, expected a file in " +
-                    roots_.front().string() +
+                    "' is outside the folder of " +
+                    excerpt(fs::path(names_.front()).filename().string(), limits::kPathBytes) +
+                    ", expected a file in " + roots_.front().string() +
                     (roots_.size() > 1 ? " or an --include-path folder" : "") +
                     " (symlinks resolved; another folder can be named with --include-path)");
     return true;
