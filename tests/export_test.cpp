@@ -733,6 +733,26 @@ TEST(ExportStl, ExportingAgainKeepsTheUsersFiles) {
     EXPECT_FALSE(entry.path().filename().string().starts_with(".out.")) << entry.path();
 }
 
+// A meshes/ folder the user replaced with a link to another folder is not
+// written through: the export is refused before anything moves.
+TEST(ExportStl, ExportingAgainWritesThroughNoLink) {
+  const fs::path work = fresh_dir("export_linked_meshes");
+  write_stl_machine(work / "cad");
+  const Exported first = run(work / "cad", machine_annotations("[0, 0, -1]"), work);
+  ASSERT_EQ(first.code, 0) << first.err;
+  fs::create_directories(work / "elsewhere");
+  std::ofstream(work / "elsewhere" / "hopper.stl") << "not a mesh of this export\n";
+  fs::remove_all(first.folder / "meshes");
+  fs::create_directory_symlink(work / "elsewhere", first.folder / "meshes");
+  const std::string before = read_text(first.folder / "scene.yaml");
+  const Exported again = run(work / "cad", machine_annotations("[0, 0, -1]"), work);
+  EXPECT_EQ(again.code, 2) << again.err;
+  EXPECT_NE(again.err.find("a link in the path leads out of the folder"), std::string::npos)
+      << again.err;
+  EXPECT_EQ(read_text(work / "elsewhere" / "hopper.stl"), "not a mesh of this export\n");
+  EXPECT_EQ(read_text(first.folder / "scene.yaml"), before);
+}
+
 // Scene keys in the annotations are checked by the simulator's own loader;
 // its findings point into the annotations, and an earlier export survives.
 TEST(ExportBadInput, InvalidSceneKeysLeaveTheEarlierExportAlone) {

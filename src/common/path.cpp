@@ -15,12 +15,18 @@ bool is_inner_file_name(const std::string& name) {
 
 void replace_files(const fs::path& from, const fs::path& to, const std::vector<std::string>& files,
                    const std::vector<std::string>& earlier, const std::string& last) {
+  const ResolvedFolder folder(to);
+  // Checked before anything moves: a 'meshes' the user linked elsewhere
+  // would take the files out of `to` and over whatever is there.
+  for (const std::string& f : files)
+    if (!folder.within(f))
+      throw fs::filesystem_error("a link in the path leads out of the folder, not written through",
+                                 to / f, std::make_error_code(std::errc::operation_not_permitted));
   for (const std::string& f : files) {
     if (f == last) continue;
     fs::create_directories((to / f).parent_path());
     fs::rename(from / f, to / f);
   }
-  const ResolvedFolder folder(to);
   for (const std::string& f : earlier)
     if (std::find(files.begin(), files.end(), f) == files.end() && folder.holds(f))
       fs::remove(to / f);
@@ -30,12 +36,15 @@ void replace_files(const fs::path& from, const fs::path& to, const std::vector<s
 ResolvedFolder::ResolvedFolder(const fs::path& path)
     : path_(path), real_(fs::weakly_canonical(path)) {}
 
+bool ResolvedFolder::within(const std::string& name) const {
+  const fs::path inside =
+      fs::weakly_canonical((path_ / name).parent_path()).lexically_relative(real_);
+  return !inside.empty() && *inside.begin() != "..";
+}
+
 bool ResolvedFolder::holds(const std::string& name) const {
-  const fs::path file = path_ / name;
-  const fs::file_status status = fs::symlink_status(file);
-  if (!fs::is_regular_file(status) && !fs::is_symlink(status)) return false;
-  const fs::path within = fs::weakly_canonical(file.parent_path()).lexically_relative(real_);
-  return !within.empty() && *within.begin() != "..";
+  const fs::file_status status = fs::symlink_status(path_ / name);
+  return (fs::is_regular_file(status) || fs::is_symlink(status)) && within(name);
 }
 
 }  // namespace ces

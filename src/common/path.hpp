@@ -22,7 +22,8 @@ bool is_inner_file_name(const std::string& name);
 // but `last`, removes those of `earlier` (what `to`'s index listed before)
 // not written again that lie in `to` itself, then moves `last` (the index
 // that lists what `to` holds): nothing else in `to` is touched. Throws
-// std::filesystem::filesystem_error.
+// std::filesystem::filesystem_error, before anything moves when a link in
+// a file's path leads out of `to`.
 void replace_files(const std::filesystem::path& from, const std::filesystem::path& to,
                    const std::vector<std::string>& files, const std::vector<std::string>& earlier,
                    const std::string& last);
@@ -35,6 +36,8 @@ class ResolvedFolder {
   // Whether `name` is a file (or a link) that lies in the folder itself: a
   // 'sub/x' whose 'sub' links elsewhere names another folder's file.
   bool holds(const std::string& name) const;
+  // Whether `name`'s folder, links resolved, is this folder or lies in it.
+  bool within(const std::string& name) const;
 
  private:
   std::filesystem::path path_, real_;
