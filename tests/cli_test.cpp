@@ -710,6 +710,38 @@ TEST(Cli, ProgressLinesInALogAtTheInterval) {
   EXPECT_LE(double(n), wall / kInterval + 1.0) << o.err;
 }
 
+// A progress line counts a step's particles and contacts as its row of
+// steps.csv does: before the step's collection takes the particles that
+// crossed a collector (tiny.yaml collects in many of its steps).
+TEST(Cli, ProgressLinesCountAsStepsCsvDoes) {
+  ::setenv("CES_PROGRESS_INTERVAL", "1e-9", 1);  // a line every step
+  const fs::path dir = fresh_dir("progress_counts");
+  const Outcome o = ces_sim(scene("tiny.yaml") + " --threads 1 -o " + dir.string());
+  ::unsetenv("CES_PROGRESS_INTERVAL");
+  ASSERT_EQ(o.code, 0) << o.err;
+  std::map<std::string, std::string> counts;  // "%.4g" of time_s -> "particles contacts"
+  std::istringstream rows(read_text(dir / "steps.csv"));
+  std::string row;
+  std::getline(rows, row);  // header: step,time_s,particles,contacts,...
+  while (std::getline(rows, row)) {
+    std::vector<std::string> f;
+    std::istringstream cells(row);
+    for (std::string c; std::getline(cells, c, ',');) f.push_back(c);
+    char t[32];
+    std::snprintf(t, sizeof t, "%.4g", std::stod(f.at(1)));
+    counts[t] = f.at(2) + " " + f.at(3);
+  }
+  const std::regex line(R"(progress: t (\S+) / 0.4 s  .*  particles (\d+)  contacts (\d+))");
+  std::istringstream lines(o.err);
+  std::size_t n = 0;
+  for (std::string text; std::getline(lines, text); ++n) {
+    std::smatch m;
+    ASSERT_TRUE(std::regex_match(text, m, line)) << text;
+    EXPECT_EQ(counts[m[1].str()], m[2].str() + " " + m[3].str()) << text;
+  }
+  EXPECT_GE(n, 100u);
+}
+
 // A run until collected ends when its particles are, long before time.end:
 // its progress lines give time.end as the cap it is, with no estimate
 // taken from it.

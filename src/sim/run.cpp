@@ -98,8 +98,11 @@ class Progress {
       std::snprintf(time, sizeof time, "t %.4g / %.4g s  wall %.1f s  ETA %.0f s", world.time(),
                     sim.end_time, wall, eta);
     }
-    std::fprintf(stderr, "%s%s  particles %zu  contacts %zu%s", terminal_ ? "\r\033[K" : "progress: ",
-                 time, world.particles().size(), world.contacts().size(), terminal_ ? "" : "\n");
+    // The step's own counts, as steps.csv has them (before its collection).
+    const StepStats& last = world.last_step();
+    std::fprintf(stderr, "%s%s  particles %zu  contacts %zu%s",
+                 terminal_ ? "\r\033[K" : "progress: ", time, last.particles, last.contacts,
+                 terminal_ ? "" : "\n");
     std::fflush(stderr);
   }
 
