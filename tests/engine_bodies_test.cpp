@@ -108,6 +108,25 @@ TEST(Engine, ClusterOfVeryDifferentSpheresStaysAccurate) {
   EXPECT_NEAR(s.unit_inertia.x(), 0.4, 1e-3 * 0.4);
 }
 
+// Clusters are integrated once per process and remembered by their
+// spheres' bits: a cluster apart from a remembered one is its own, and
+// threads asking for clusters at once get what one thread gets alone.
+TEST(Engine, RememberedClustersAreEachClustersOwn) {
+  const auto volume = [](double r) {
+    return make_particle_shape({Vec3(0, 0, 0), Vec3(1, 0, 0)}, {1.0, r}).volume;
+  };
+  const double first = volume(1.0);
+  EXPECT_EQ(volume(1.0), first);
+  EXPECT_NE(volume(1.0 + 1e-6), first);
+  std::vector<double> together(4);
+#pragma omp parallel for schedule(static, 1)
+  for (std::size_t k = 0; k < together.size(); ++k) together[k] = volume(0.6 + 0.1 * double(k % 2));
+  EXPECT_EQ(together[2], together[0]);
+  EXPECT_EQ(together[3], together[1]);
+  EXPECT_EQ(volume(0.6), together[0]);
+  EXPECT_NE(together[1], together[0]);
+}
+
 // ---------------------------------------------------------------- nip
 
 // The nip of two rigid cylinders that touch (zero gap), both kinematic and

@@ -3,7 +3,11 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
+#include <cstdint>
+#include <map>
+#include <mutex>
 #include <stdexcept>
 #include <tuple>
 #include <utility>
@@ -175,6 +179,32 @@ class UnionIntegrator {
   std::vector<std::vector<std::size_t>> near_;  // per depth: the spheres near the cell visited
 };
 
+// The union's moments, remembered per process by the spheres' bits: the
+// integration is most of a scene's load, and a process that loads scenes
+// again (a sweep through the Python module, a test's cases) integrates
+// the same clusters again. A remembered result is the integration's own,
+// to the bit.
+Moments union_moments(const std::vector<Vec3>& centers, const std::vector<double>& radii) {
+  constexpr std::size_t kRemembered = 64;  // clusters; a scene makes at most a few dozen
+  std::vector<std::uint64_t> key;
+  key.reserve(4 * centers.size());
+  for (std::size_t i = 0; i < centers.size(); ++i) {
+    for (int k = 0; k < 3; ++k) key.push_back(std::bit_cast<std::uint64_t>(centers[i][k]));
+    key.push_back(std::bit_cast<std::uint64_t>(radii[i]));
+  }
+  static std::mutex mutex;
+  static std::map<std::vector<std::uint64_t>, Moments> known;
+  {
+    const std::lock_guard lock(mutex);
+    if (const auto it = known.find(key); it != known.end()) return it->second;
+  }
+  const Moments m = UnionIntegrator(centers, radii).integrate();  // outside the lock
+  const std::lock_guard lock(mutex);
+  if (known.size() >= kRemembered) known.clear();
+  known.emplace(std::move(key), m);
+  return m;
+}
+
 // Eigen returns eigenvectors with arbitrary signs; fix them so the principal
 // frame is right-handed and reproducible.
 Mat3 canonical_axes(Mat3 axes) {
@@ -299,7 +329,7 @@ ParticleShape make_particle_shape(const std::vector<Vec3>& centers, const std::v
   if (!any_overlap(centers, radii)) {
     for (std::size_t i = 0; i < centers.size(); ++i) m.add_sphere(centers[i], radii[i]);
   } else {
-    m = UnionIntegrator(centers, radii).integrate();
+    m = union_moments(centers, radii);
   }
   const Vec3 com = m.first / m.volume;
   const Mat3 second = m.second / m.volume - com * com.transpose();  // about the COM, per unit mass
