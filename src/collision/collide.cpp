@@ -320,6 +320,8 @@ void Collider::broadphase(const Model& model, const Particles& p, const Bodies& 
   const double h = model.step;
   reach_.resize(n);
   envelope_.resize(n);
+  resting_.resize(n);
+  bounding_.resize(n);
   blow_.assign(n, 0.0);
   neighbour_blow_.assign(n, 0.0);
 #pragma omp parallel for schedule(static) if (std::ptrdiff_t(n) > kParallelMin)
@@ -335,7 +337,9 @@ void Collider::broadphase(const Model& model, const Particles& p, const Bodies& 
     const double speed = (p.velocity[i] + forced_change(model, p, i)).norm();
     const double travel =
         (std::max(p.velocity[i].norm(), speed) + p.angular_velocity[i].norm() * bounding) * h;
-    envelope_[i] = resting_envelope(model, p, i) + travel;
+    resting_[i] = resting_envelope(model, p, i);
+    bounding_[i] = bounding;
+    envelope_[i] = resting_[i] + travel;
     reach_[i] = bounding + envelope_[i];
   }
   for (std::size_t b = 0; b < model.bodies.size(); ++b) struck_by_body(model, p, bodies, int(b));
@@ -525,8 +529,8 @@ void Collider::particle_pairs(const Model& model, const Particles& p, Contacts& 
       const PairMotion motion{p.position[ui], p.velocity[ui], p.angular_velocity[ui],
                               p.position[uj], p.velocity[uj], p.angular_velocity[uj],
                               h,              change_[ui],   change_[uj]};
-      const double resting = resting_envelope(model, p, ui) + resting_envelope(model, p, uj);
-      const double bounds = bounding_radius(model, p, ui) + bounding_radius(model, p, uj);
+      const double resting = resting_[ui] + resting_[uj];
+      const double bounds = bounding_[ui] + bounding_[uj];
       const double envelope =
           motion.search_envelope(resting, bounds, envelope_[ui] + envelope_[uj]);
       // Bounding spheres farther apart than the envelope: every sphere's,

@@ -57,6 +57,9 @@ class Collider {
   std::vector<Vec3> sphere_centre_;        // in the world, this step
   std::vector<PlateFrame> plate_frame_;    // particle i's, if a flake with flat faces
   std::vector<double> reach_, envelope_;
+  // Particle i's resting envelope and bounding radius, made once a step
+  // for its every pair (a cluster's smallest sphere is a search).
+  std::vector<double> resting_, bounding_;
   std::vector<double> kick_;  // what impacts with neighbours can add to the travel (m)
   // For the manifold's cull (speed_changes): the largest impulses the
   // bodies together and one neighbour can give a particle this step (N s).
