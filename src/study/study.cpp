@@ -189,6 +189,43 @@ ProductFigures main_material_figures(const fs::path& file) {
   return figures;
 }
 
+// A reference run's tables, read once for every case measured against it.
+struct Reference {
+  output::Landings landings;
+  ProductFigures figures;
+};
+
+Reference read_reference(const fs::path& dir) {
+  return {output::read_landings(dir / "crossings.csv"),
+          main_material_figures(dir / "products.csv")};
+}
+
+Errors measure_against(const fs::path& run, const Reference& reference) {
+  Errors e;
+  const output::Landings a = output::read_landings(run / "crossings.csv");
+  const output::Landings& b = reference.landings;
+  for (const auto* side : {&a, &b})
+    for (const auto& [key, samples] : *side) {
+      const auto ia = a.find(key), ib = b.find(key);
+      e.w1_mm[key] = ia == a.end() || ib == b.end()
+                         ? std::numeric_limits<double>::infinity()
+                         : 1e3 * output::wasserstein1(ia->second, ib->second);
+    }
+  for (const auto& [key, w1] : e.w1_mm) e.w1_max_mm = std::max(e.w1_max_mm, w1);
+  const ProductFigures fa = main_material_figures(run / "products.csv");
+  const ProductFigures& fb = reference.figures;
+  for (const auto& [product, a] : fa.main) {
+    const auto b = fb.main.find(product);
+    if (b == fb.main.end()) continue;
+    e.grade = std::max(e.grade, std::abs(a.grade - b->second.grade));
+    e.recovery = std::max(e.recovery, std::abs(a.recovery - b->second.recovery));
+  }
+  std::ifstream in(run / "summary.json");
+  const auto j = nlohmann::json::parse(in, nullptr, false);
+  e.balance_exact = !j.is_discarded() && j["balance"].value("exact", false);
+  return e;
+}
+
 // The study command's own arguments (after "study"), but for --case,
 // --jobs and --scheduler: what every case command and the final measuring
 // command share.
@@ -264,7 +301,7 @@ int write_slurm(const Options& o) {
   return 0;
 }
 
-Row read_row(const Options& o, const Case& c, const fs::path& reference) {
+Row read_row(const Options& o, const Case& c, const Reference& reference) {
   Row r;
   r.c = c;
   const fs::path dir = case_dir(o, c);
@@ -279,7 +316,7 @@ Row read_row(const Options& o, const Case& c, const fs::path& reference) {
   r.residual_p95 = s.value("residual_p95_mps", 0.0);
   r.steps_at_cap = s.value("steps_at_iteration_cap", 0L);
   r.penetration_relative = s.value("max_penetration_relative", 0.0);
-  if (r.complete) r.errors = measure(dir, reference);
+  if (r.complete) r.errors = measure_against(dir, reference);
   return r;
 }
 
@@ -462,8 +499,8 @@ std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& row
 // standard errors. A case's errors below about 1.4 times them (the spread
 // of a difference of two independent samples) are what another seed's
 // feed would give: not an error of its settings.
-std::string sampling_line(const fs::path& reference) {
-  const ProductFigures figures = main_material_figures(reference / "products.csv");
+std::string sampling_line(const Reference& reference) {
+  const ProductFigures& figures = reference.figures;
   if (!figures.has_errors)
     return "the feed's sampling at the reference: not known (its products.csv has no standard "
            "errors)\n";
@@ -478,8 +515,8 @@ std::string sampling_line(const fs::path& reference) {
 
 // A reference that collected nothing leaves nothing to measure: its cases'
 // errors read 0, which says so rather than that they agree.
-std::string nothing_collected(const fs::path& reference) {
-  if (!output::read_landings(reference / "crossings.csv").empty()) return "";
+std::string nothing_collected(const Reference& reference) {
+  if (!reference.landings.empty()) return "";
   return "warning: the reference collected no particle, so every error below is 0 for want of "
          "anything to compare; run the cases until particles reach the collectors (time.end)\n";
 }
@@ -638,29 +675,7 @@ std::vector<std::string> case_arguments(const Options& o, const Case& c) {
 }
 
 Errors measure(const fs::path& run, const fs::path& reference) {
-  Errors e;
-  const output::Landings a = output::read_landings(run / "crossings.csv");
-  const output::Landings b = output::read_landings(reference / "crossings.csv");
-  for (const auto* side : {&a, &b})
-    for (const auto& [key, samples] : *side) {
-      const auto ia = a.find(key), ib = b.find(key);
-      e.w1_mm[key] = ia == a.end() || ib == b.end()
-                         ? std::numeric_limits<double>::infinity()
-                         : 1e3 * output::wasserstein1(ia->second, ib->second);
-    }
-  for (const auto& [key, w1] : e.w1_mm) e.w1_max_mm = std::max(e.w1_max_mm, w1);
-  const ProductFigures fa = main_material_figures(run / "products.csv"),
-                       fb = main_material_figures(reference / "products.csv");
-  for (const auto& [product, a] : fa.main) {
-    const auto b = fb.main.find(product);
-    if (b == fb.main.end()) continue;
-    e.grade = std::max(e.grade, std::abs(a.grade - b->second.grade));
-    e.recovery = std::max(e.recovery, std::abs(a.recovery - b->second.recovery));
-  }
-  std::ifstream in(run / "summary.json");
-  const auto j = nlohmann::json::parse(in, nullptr, false);
-  e.balance_exact = !j.is_discarded() && j["balance"].value("exact", false);
-  return e;
+  return measure_against(run, read_reference(reference));
 }
 
 Scheduler parse_scheduler(const std::string& name) {
@@ -703,13 +718,14 @@ int run(const Options& o) {
   const bool ok = run_cases(o, cases);
   const fs::path reference =
       o.reference.empty() ? case_dir(o, cases[finest_case(o, cases)]) : o.reference;
+  const Reference tables = read_reference(reference);
   std::vector<Row> rows;
-  for (const Case& c : cases) rows.push_back(read_row(o, c, reference));
+  for (const Case& c : cases) rows.push_back(read_row(o, c, tables));
   output::write_file_atomic(o.out_dir / "study.csv", study_csv(o.axes, rows));
-  const std::string warning = nothing_collected(reference);
+  const std::string warning = nothing_collected(tables);
   if (!warning.empty()) std::fputs(warning.c_str(), stderr);
   const std::string svg = study_svg(rows),
-                    table = warning + sampling_line(reference) + study_table(o.axes, rows);
+                    table = warning + sampling_line(tables) + study_table(o.axes, rows);
   output::write_file_atomic(o.out_dir / "study.svg", svg);
   output::write_file_atomic(o.out_dir / "report.html", study_report(cases, reference, table, svg));
   std::printf("reference: %s\n%s", reference.c_str(), table.c_str());
