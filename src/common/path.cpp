@@ -1,6 +1,12 @@
 #include "common/path.hpp"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <system_error>
 
 namespace ces {
 
@@ -32,6 +38,17 @@ void replace_files(const fs::path& from, const fs::path& to, const std::vector<s
       fs::remove(to / f);
   fs::rename(from / last, to / last);
 }
+
+FolderLock::FolderLock(const fs::path& dir, bool wait)
+    : fd_(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)) {
+  if (fd_ < 0) throw std::system_error(errno, std::generic_category(), dir.string());
+  int got = 0;
+  do got = ::flock(fd_, LOCK_EX | (wait ? 0 : LOCK_NB));
+  while (got != 0 && errno == EINTR);
+  held_ = got == 0;
+}
+
+FolderLock::~FolderLock() { ::close(fd_); }
 
 ResolvedFolder::ResolvedFolder(const fs::path& path)
     : path_(path), real_(fs::weakly_canonical(path)) {}

@@ -28,6 +28,24 @@ void replace_files(const std::filesystem::path& from, const std::filesystem::pat
                    const std::vector<std::string>& files, const std::vector<std::string>& earlier,
                    const std::string& last);
 
+// An exclusive lock on a folder (flock on the folder itself) for the
+// object's life; the kernel lets go of it when the process ends, however
+// it ends. With `wait` it blocks until another holder lets go; without,
+// held() says whether it was taken. Throws std::system_error when the
+// folder cannot be opened.
+class FolderLock {
+ public:
+  FolderLock(const std::filesystem::path& dir, bool wait);
+  ~FolderLock();
+  FolderLock(const FolderLock&) = delete;
+  FolderLock& operator=(const FolderLock&) = delete;
+  bool held() const { return held_; }
+
+ private:
+  int fd_ = -1;
+  bool held_ = false;
+};
+
 // A folder, resolved once for every file checked in it.
 class ResolvedFolder {
  public:

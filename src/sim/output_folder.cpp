@@ -1,11 +1,8 @@
 #include "sim/output_folder.hpp"
 
-#include <fcntl.h>
-#include <sys/file.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <fstream>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "common/path.hpp"
@@ -71,17 +68,18 @@ void io(const std::string& what, const fs::path& path, const fs::filesystem_erro
                         e.code().message());
 }
 
-// DIR itself, opened and locked: no file of ours is left in it, and the
-// kernel lets go of the lock when the process ends, however it ends.
-int lock_folder(const fs::path& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) throw output::IoError("cannot open the output folder " + dir.string());
-  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
-    ::close(fd);
+// DIR itself, locked: no file of ours is left in it.
+std::unique_ptr<FolderLock> lock_folder(const fs::path& dir) {
+  std::unique_ptr<FolderLock> lock;
+  try {
+    lock = std::make_unique<FolderLock>(dir, false);
+  } catch (const std::system_error&) {
+    throw output::IoError("cannot open the output folder " + dir.string());
+  }
+  if (!lock->held())
     throw output::IoError("another ces-sim run is writing in " + dir.string() +
                           ": wait for it to end, or give this run another folder (-o)");
-  }
-  return fd;
+  return lock;
 }
 
 }  // namespace
@@ -98,14 +96,11 @@ OutputFolder::OutputFolder(fs::path dir, output::Start start)
     if (start == output::Start::Fresh && fs::exists(work_)) clear_work(work_);
     fs::create_directories(work_);
   } catch (const fs::filesystem_error& e) {
-    ::close(lock_);
     io("prepare the output folder", dir_, e);
   }
 }
 
-OutputFolder::~OutputFolder() {
-  if (lock_ >= 0) ::close(lock_);
-}
+OutputFolder::~OutputFolder() = default;
 
 void OutputFolder::publish(const std::vector<std::string>& files) const {
   // A folder where a file goes cannot be replaced: found before any move,

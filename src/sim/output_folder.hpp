@@ -12,9 +12,11 @@
 // refused while it holds the folder (it would clear DIR/partial under it).
 #pragma once
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "common/path.hpp"
 #include "output/files.hpp"
 
 namespace ces {
@@ -40,7 +42,7 @@ class OutputFolder {
 
  private:
   std::filesystem::path dir_, work_;
-  int lock_ = -1;  // DIR opened and locked (flock) while the run lives
+  std::unique_ptr<FolderLock> lock_;  // DIR's, while the run lives
 };
 
 }  // namespace ces
