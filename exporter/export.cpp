@@ -190,6 +190,10 @@ std::vector<std::string> earlier_files(const fs::path& out) {
 // notes, a run written into it), as ces-sim treats its output folder. The
 // report moves last, so the folder's report lists what it holds.
 void publish(const fs::path& temp, const fs::path& out, const std::vector<std::string>& files) {
+  // One export at a time publishes into the folder: two at once would each
+  // remove the files the other's report does not list. The lock is the
+  // parent's, which exists (the temporary folder is its child).
+  const FolderLock one_at_a_time(absolute_path(out).parent_path(), true);
   std::error_code ec;
   if (!fs::exists(out, ec)) return fs::rename(temp, out);
   for (const std::string& f : files)

@@ -10,12 +10,16 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <fstream>
+#include <future>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "common/path.hpp"
 #include "export_support.hpp"
 #include "support.hpp"
 
@@ -751,6 +755,25 @@ TEST(ExportStl, ExportingAgainWritesThroughNoLink) {
       << again.err;
   EXPECT_EQ(read_text(work / "elsewhere" / "hopper.stl"), "not a mesh of this export\n");
   EXPECT_EQ(read_text(first.folder / "scene.yaml"), before);
+}
+
+// Exports into one folder publish one at a time: each removes the files its
+// predecessor's report lists and it does not write, so two at once left a
+// scene naming a mesh the other had removed. An export waits while the
+// folder's parent is locked, then publishes.
+TEST(ExportStl, ExportsIntoOneFolderPublishOneAtATime) {
+  const fs::path work = fresh_dir("export_one_at_a_time");
+  write_stl_machine(work / "cad");
+  auto held = std::make_unique<ces::FolderLock>(work, true);
+  auto waiting = std::async(std::launch::async, [&] {
+    return run(work / "cad", machine_annotations("[0, 0, -1]"), work);
+  });
+  EXPECT_EQ(waiting.wait_for(std::chrono::milliseconds(500)), std::future_status::timeout);
+  EXPECT_FALSE(fs::exists(work / "out"));
+  held.reset();
+  const Exported done = waiting.get();
+  EXPECT_EQ(done.code, 0) << done.err;
+  EXPECT_TRUE(fs::exists(work / "out" / "scene.yaml"));
 }
 
 // Scene keys in the annotations are checked by the simulator's own loader;
