@@ -5,9 +5,11 @@
 
 #include <algorithm>
 #include <assimp/Importer.hpp>
+#include <cstdio>
 #include <filesystem>
 
 #include "parts.hpp"
+#include "scene/text.hpp"
 
 namespace ces::exporter {
 namespace {
@@ -59,10 +61,28 @@ Part read_one(const fs::path& file, double scale) {
   return part;
 }
 
+// A part's name is its file's stem, and goes into the scene and the JSON
+// report, which hold UTF-8 text only.
+void check_utf8_name(const fs::path& file) {
+  const std::string name = file.filename().string();
+  if (!scene::invalid_utf8(name)) return;
+  std::string shown;
+  for (const char ch : name) {
+    const auto c = static_cast<unsigned char>(ch);
+    char hex[5];
+    std::snprintf(hex, sizeof hex, "\\x%02X", c);
+    shown += c < 0x80 ? std::string(1, ch) : std::string(hex);
+  }
+  throw InputError("cannot read " + (file.parent_path() / shown).string() +
+                   ": its name is not UTF-8 text, expected a UTF-8 file name (a part is named "
+                   "after its file: rename it)");
+}
+
 std::vector<fs::path> mesh_files_in(const fs::path& folder) {
   std::vector<fs::path> files;
   for (const auto& e : fs::directory_iterator(folder))
     if (e.is_regular_file() && is_mesh_file(e.path())) files.push_back(e.path());
+  for (const fs::path& f : files) check_utf8_name(f);
   std::sort(files.begin(), files.end());  // directory order is not portable
   if (files.empty()) throw InputError("no .stl or .obj files in " + folder.string());
   return files;

@@ -49,7 +49,8 @@ void silence_occt() {
 std::string label_name(const TDF_Label& label) {
   Handle(TDataStd_Name) name;
   if (!label.FindAttribute(TDataStd_Name::GetID(), name)) return "";
-  const std::string s = TCollection_AsciiString(name->Get(), '_').ToCString();
+  // Without a replacement character OpenCASCADE writes UTF-8.
+  const std::string s = TCollection_AsciiString(name->Get()).ToCString();
   return s.starts_with("=>") ? "" : s;
 }
 

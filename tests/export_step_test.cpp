@@ -143,6 +143,22 @@ Exported export_edited(const fs::path& step, const fs::path& work) {
   return run(step, read_text(kSourceRoot / "meshes/ces/annotations.yaml"), work);
 }
 
+// A product named with a character past ASCII (STEP's \X2\ escape) keeps
+// it, as UTF-8: the annotations name it as the CAD shows it, and the
+// report, JSON, holds it (an ASCII conversion made 'St\xE4nder', which
+// no annotation could name and the report could not hold).
+TEST(ExportStep, ProductNamesPastAsciiAreUtf8) {
+  const fs::path work = fresh_dir("export_step_utf8");
+  const fs::path step = work / "machine.step";
+  write_edited_reference(step, R"(PRODUCT\('stand','stand')",
+                         R"(PRODUCT('St\X2\00E4\X0\nder','St\X2\00E4\X0\nder')");
+  std::string annotations = read_text(kSourceRoot / "meshes/ces/annotations.yaml");
+  annotations.replace(annotations.find("  stand:"), 8, "  \"St\u00e4nder\":");
+  const Exported e = run(step, annotations, work);
+  ASSERT_EQ(e.code, 0) << e.err;
+  EXPECT_EQ(e.report["ignored"], nlohmann::json::array({"St\u00e4nder"}));
+}
+
 // Files that crash OpenCASCADE (a reference to a missing entity, an entity
 // that refers to itself, a circle of radius 1e300) are errors naming the
 // file, like a file that is not STEP.

@@ -757,6 +757,20 @@ TEST(ExportStl, ExportingAgainWritesThroughNoLink) {
   EXPECT_EQ(read_text(first.folder / "scene.yaml"), before);
 }
 
+// A part is named after its file, and a name goes into the scene and the
+// JSON report: a file name that is not UTF-8 (Latin-1 'Schraube_\xe4')
+// is refused naming the file, where the report's writer threw (exit 4).
+TEST(ExportStl, FileNamesThatAreNotUtf8AreRefused) {
+  const fs::path work = fresh_dir("export_latin1");
+  write_stl_machine(work / "cad");
+  fs::copy_file(work / "cad" / "hopper.stl", work / "cad" / "Schraube_\xe4.stl");
+  const Exported e = run(work / "cad", machine_annotations("[0, 0, -1]"), work);
+  EXPECT_EQ(e.code, 2) << e.err;
+  EXPECT_NE(e.err.find("Schraube_\\xE4.stl: its name is not UTF-8 text"), std::string::npos)
+      << e.err;
+  expect_nothing_written(e);
+}
+
 // Exports into one folder publish one at a time: each removes the files its
 // predecessor's report lists and it does not write, so two at once left a
 // scene naming a mesh the other had removed. An export waits while the
