@@ -188,6 +188,26 @@ TEST(Study, ErrorsShrinkWithTheStepAndTheReferenceIsExact) {
 
 // A study of tolerances at one step: the reference is the tightest case,
 // whatever order the axis lists them in.
+// A product can be mostly copper in one run and mostly FR-4 in the other:
+// its grade and recovery errors are the case's against the reference's on
+// the reference's main material, not one material's figures against the
+// other's.
+TEST(Study, GradeErrorsAreOnTheReferencesMainMaterial) {
+  const path ref = test::fresh_dir("study_main_ref"), run = test::fresh_dir("study_main_case");
+  ASSERT_EQ(test::ces_sim(kScene + " -q -o " + ref.string()).code, 0);
+  for (const char* f : {"crossings.csv", "summary.json"})
+    std::filesystem::copy_file(ref / f, run / f);
+  const std::string header =
+      "collector,product,from_m,to_m,material,count,mass_kg,grade,recovery\n";
+  std::ofstream(ref / "products.csv") << header << "tray,near,0,1,copper,3,0.003,0.6,0.5\n"
+                                      << "tray,near,0,1,fr4,2,0.002,0.4,0.2\n";
+  std::ofstream(run / "products.csv") << header << "tray,near,0,1,copper,3,0.003,0.45,0.45\n"
+                                      << "tray,near,0,1,fr4,4,0.0037,0.55,0.3\n";
+  const study::Errors e = study::measure(run, ref);
+  EXPECT_NEAR(e.grade, 0.15, 1e-12);  // copper: 0.45 against 0.6
+  EXPECT_NEAR(e.recovery, 0.05, 1e-12);
+}
+
 TEST(Study, TheTightestToleranceIsTheReference) {
   const path dir = test::fresh_dir("study_tolerance");
   const test::Outcome r = test::ces_sim(

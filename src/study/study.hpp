@@ -78,7 +78,8 @@ std::vector<std::string> case_arguments(const Options& o, const Case& c);
 struct Errors {
   std::map<std::string, double> w1_mm;  // per "material at collector"; inf: collected in one only
   double w1_max_mm = 0.0;
-  double grade = 0.0, recovery = 0.0;   // max abs difference over products, of their main material
+  double grade = 0.0,
+         recovery = 0.0;  // max abs difference over products, on the reference's main material
   bool balance_exact = false;           // this run's fed = collected + lost + active
 };
 // Throws output::IoError when a folder lacks a table.
