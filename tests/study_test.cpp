@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <thread>
 #include <vector>
@@ -226,6 +227,29 @@ TEST(Study, ANothingCollectedReferenceIsNamed) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("warning: the reference collected no particle"), std::string::npos) << r.err;
   EXPECT_NE(r.out.find("warning: the reference collected no particle"), std::string::npos) << r.out;
+}
+
+// A study run again reuses its complete cases, unless the scene changed
+// since: the edited scene's cases run again (they kept the old numbers).
+TEST(Study, AnEditedSceneRunsItsCasesAgain) {
+  const path dir = test::fresh_dir("study_edited");
+  const path scene = dir / "drop.yaml";
+  std::filesystem::copy_file(kScene, scene);
+  const std::string study =
+      "study " + scene.string() + " --vary time.step=1ms,2ms -o " + (dir / "out").string();
+  ASSERT_EQ(test::ces_sim(study).code, 0);
+  const auto fed = [&] {
+    const std::string summary = test::read_text(dir / "out" / "case_0" / "summary.json");
+    return nlohmann::json::parse(summary)["balance"]["fed"]["count"].get<int>();
+  };
+  const int before = fed();
+  ASSERT_EQ(test::ces_sim(study).code, 0);
+  EXPECT_EQ(fed(), before);  // nothing changed: reused
+  std::string text = test::read_text(scene);
+  text.replace(text.find("rate: 100 /s"), 12, "rate: 200 /s");
+  std::ofstream(scene) << text;
+  ASSERT_EQ(test::ces_sim(study).code, 0);
+  EXPECT_GT(fed(), before);
 }
 
 // --list-cases: one line per case, K then its --set list; --case K runs that

@@ -81,13 +81,35 @@ std::string read_file(const fs::path& p) {
   return ss.str();
 }
 
-// A case is done when its folder holds a complete run of the same command.
+// A case's scene as its run loads it: the study's overrides and removals,
+// the case's values, the seed and the include folders.
+Simulation case_scene(const Options& o, const Case& c) {
+  scene::LoadOptions lo;
+  lo.overrides = o.base_sets;
+  lo.removals = o.base_unsets;
+  lo.include_paths = o.include_paths;
+  lo.seed = o.seed;
+  lo.overrides.insert(lo.overrides.end(), c.sets.begin(), c.sets.end());
+  return scene::load(o.scene, lo);
+}
+
+// A case is done when its folder holds a complete run of the same command
+// on the same scene: an edit of the scene file or of a file it includes
+// since makes the case run again.
 bool already_done(const Options& o, const Case& c) {
   const fs::path dir = case_dir(o, c);
   if (read_file(dir / kCaseStamp) != joined(case_arguments(o, c)) + "\n") return false;
   std::ifstream in(dir / "summary.json");
   const auto j = nlohmann::json::parse(in, nullptr, false);
-  return !j.is_discarded() && j.value("complete", false);
+  if (j.is_discarded() || !j.value("complete", false)) return false;
+  const auto* hash = j.contains("scene") && j["scene"].is_object() && j["scene"].contains("hash")
+                         ? &j["scene"]["hash"]
+                         : nullptr;
+  try {
+    return hash && hash->is_string() && *hash == case_scene(o, c).scene_hash;
+  } catch (const scene::SceneError&) {
+    return false;  // the run says what is wrong with it
+  }
 }
 
 int cores() { return std::max(1, int(std::thread::hardware_concurrency())); }
@@ -455,12 +477,7 @@ std::size_t finest_case(const Options& o, const std::vector<Case>& cases) {
   std::size_t best = 0;
   Finest best_key{true, kInf, kInf, kInf, 0};
   for (const Case& c : cases) {
-    scene::LoadOptions lo;
-    lo.overrides = o.base_sets;
-    lo.removals = o.base_unsets;
-    lo.include_paths = o.include_paths;
-    lo.overrides.insert(lo.overrides.end(), c.sets.begin(), c.sets.end());
-    const Simulation sim = scene::load(o.scene, lo);
+    const Simulation sim = case_scene(o, c);
     // DVI before DEM (the method under study; a DEM run at its tiny step is
     // not the finer solution of the rigid problem), then the smallest step,
     // then the tightest residual and overlap tolerances, then the largest
