@@ -182,11 +182,12 @@ TEST(Cli, BadArgumentsExitTwo) {
   // failed run.
   const fs::path file = fresh_dir("out_is_a_file") / "file";
   std::ofstream(file) << "mine\n";
-  for (const fs::path& out : {file, file / "run"}) {
-    const Outcome o = ces_sim(scene("tiny.yaml") + " -q -o " + out.string());
-    EXPECT_EQ(o.code, 2) << o.err;
-    EXPECT_NE(o.err.find(file.string() + " is not a folder"), std::string::npos) << o.err;
-  }
+  for (const std::string& command : {std::string(), std::string("study --vary seed=1,2 ")})
+    for (const fs::path& out : {file, file / "run"}) {
+      const Outcome o = ces_sim(command + scene("tiny.yaml") + " -o " + out.string());
+      EXPECT_EQ(o.code, 2) << command << o.err;
+      EXPECT_NE(o.err.find(file.string() + " is not a folder"), std::string::npos) << o.err;
+    }
   EXPECT_EQ(read_text(file), "mine\n");
 }
 

@@ -252,6 +252,41 @@ TEST(Study, AnEditedSceneRunsItsCasesAgain) {
   EXPECT_GT(fed(), before);
 }
 
+// A case that failed has no figures: its row of study.csv is empty past
+// "complete" (it read zeros, perfect agreement). A failed reference is
+// named, as is a --reference that did not complete.
+TEST(Study, FailedCasesAndReferencesAreNamedNotZero) {
+  const path dir = test::fresh_dir("study_failed");
+  const std::string base = "study " + kScene + " --set time.until=collected -o ";
+  const test::Outcome one = test::ces_sim(base + (dir / "one").string() +
+                                          " --vary time.step:time.end=1ms:0.05s,0.5ms:0.3s");
+  EXPECT_EQ(one.code, 3) << one.err;
+  const auto rows = read_csv(dir / "one" / "study.csv");
+  ASSERT_EQ(rows.size(), 3u);
+  const std::size_t complete =
+      std::size_t(std::find(rows[0].begin(), rows[0].end(), "complete") - rows[0].begin());
+  ASSERT_LT(complete, rows[1].size());
+  EXPECT_EQ(rows[1][complete], "false");
+  for (std::size_t i = complete + 1; i < rows[1].size(); ++i)
+    EXPECT_EQ(rows[1][i], "") << rows[0][i];
+  EXPECT_EQ(rows[2][complete], "true");
+
+  const test::Outcome finest = test::ces_sim(base + (dir / "two").string() +
+                                             " --vary time.step:time.end=1ms:0.3s,0.5ms:0.05s");
+  EXPECT_EQ(finest.code, 3);
+  EXPECT_NE(finest.err.find("the reference, the finest case, " + (dir / "two" / "case_1").string() +
+                            ", did not complete"),
+            std::string::npos)
+      << finest.err;
+
+  const path failed = dir / "one" / "case_0" / "partial";
+  const test::Outcome given =
+      test::ces_sim("study " + kScene + " --vary time.step=1ms,2ms --reference " + failed.string() +
+                    " -o " + (dir / "three").string());
+  EXPECT_EQ(given.code, 2);
+  EXPECT_NE(given.err.find("does not say the run completed"), std::string::npos) << given.err;
+}
+
 // --list-cases: one line per case, K then its --set list; --case K runs that
 // case only; the full study then reuses it rather than running it again.
 TEST(Study, ListAndSelectCases) {

@@ -19,6 +19,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/path.hpp"
 #include "dynamics/isa.hpp"
 #include "output/compare.hpp"
 #include "output/files.hpp"
@@ -234,12 +235,10 @@ int ended(const ces::RunResult& result) {
 void check_out_dir(const Args& args, const ces::Simulation& sim) {
   const bool given = !args.out_dir.empty();
   const std::filesystem::path dir = given ? args.out_dir : sim.output.dir;
-  std::filesystem::path made = dir;  // the part of the path that exists
-  std::error_code ec;
-  while (!std::filesystem::exists(made, ec) && made.has_relative_path()) made = made.parent_path();
-  if (made.empty() || std::filesystem::is_directory(made, ec)) return;
-  throw UsageError(std::string(given ? "-o " : "output.dir ") + dir.string() + ": " +
-                   made.string() + " is not a folder, expected a folder's path (made if missing)");
+  if (const auto file = ces::file_in_the_way(dir))
+    throw UsageError(std::string(given ? "-o " : "output.dir ") + dir.string() + ": " +
+                     file->string() +
+                     " is not a folder, expected a folder's path (made if missing)");
 }
 
 int run_scene(const Args& args) {

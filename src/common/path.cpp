@@ -12,6 +12,14 @@ namespace ces {
 
 namespace fs = std::filesystem;
 
+std::optional<fs::path> file_in_the_way(const fs::path& dir) {
+  fs::path made = dir;
+  std::error_code ec;
+  while (!fs::exists(made, ec) && made.has_relative_path()) made = made.parent_path();
+  if (made.empty() || fs::is_directory(made, ec)) return std::nullopt;
+  return made;
+}
+
 bool is_inner_file_name(const std::string& name) {
   const fs::path p(name);
   if (name.empty() || p.is_absolute() || p.filename().empty()) return false;

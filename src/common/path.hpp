@@ -1,6 +1,7 @@
 // Paths as the commands that take them from a scene or a study name them.
 #pragma once
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,10 @@ namespace ces {
 inline std::filesystem::path absolute_path(const std::filesystem::path& p) {
   return std::filesystem::absolute(p.empty() ? std::filesystem::path(".") : p).lexically_normal();
 }
+
+// The part of `dir`'s path that exists, when it is not a folder (a file
+// where a folder is to be made, or on the way to it); nothing otherwise.
+std::optional<std::filesystem::path> file_in_the_way(const std::filesystem::path& dir);
 
 // Whether `name`, a file's path read from a file anyone may edit (a run's
 // summary.json, an export's report), names a file inside the folder it is

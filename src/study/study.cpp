@@ -81,6 +81,13 @@ std::string read_file(const fs::path& p) {
   return ss.str();
 }
 
+// Whether `dir`'s summary.json says its run completed.
+bool completed(const fs::path& dir) {
+  std::ifstream in(dir / "summary.json");
+  const auto j = nlohmann::json::parse(in, nullptr, false);
+  return j.is_object() && j.value("complete", false);
+}
+
 // A case's scene as its run loads it: the study's overrides and removals,
 // the case's values, the seed and the include folders.
 Simulation case_scene(const Options& o, const Case& c) {
@@ -99,9 +106,9 @@ Simulation case_scene(const Options& o, const Case& c) {
 bool already_done(const Options& o, const Case& c) {
   const fs::path dir = case_dir(o, c);
   if (read_file(dir / kCaseStamp) != joined(case_arguments(o, c)) + "\n") return false;
+  if (!completed(dir)) return false;
   std::ifstream in(dir / "summary.json");
   const auto j = nlohmann::json::parse(in, nullptr, false);
-  if (j.is_discarded() || !j.value("complete", false)) return false;
   const auto* hash = j.contains("scene") && j["scene"].is_object() && j["scene"].contains("hash")
                          ? &j["scene"]["hash"]
                          : nullptr;
@@ -509,15 +516,20 @@ std::string study_csv(const std::vector<Axis>& axes, const std::vector<Row>& row
   for (const Row& r : rows) {
     std::vector<std::string> f{std::to_string(r.c.index)};
     for (const auto& [k, v] : r.c.sets) f.push_back(v);
-    f.insert(f.end(), {r.complete ? "true" : "false", fmt(r.wall_s), fmt(r.errors.w1_max_mm)});
-    for (const std::string& k : keys) {
-      const auto it = r.errors.w1_mm.find(k);
-      f.push_back(it == r.errors.w1_mm.end() ? std::string() : fmt(it->second));
+    if (r.complete) {
+      f.insert(f.end(), {"true", fmt(r.wall_s), fmt(r.errors.w1_max_mm)});
+      for (const std::string& k : keys) {
+        const auto it = r.errors.w1_mm.find(k);
+        f.push_back(it == r.errors.w1_mm.end() ? std::string() : fmt(it->second));
+      }
+      f.insert(f.end(),
+               {fmt(r.errors.grade), fmt(r.errors.recovery),
+                r.errors.balance_exact ? "true" : "false", r.method, fmt(r.residual_p95),
+                std::to_string(r.steps_at_cap), fmt(r.penetration_relative), r.contact_model});
+    } else {
+      f.push_back("false");  // nothing measured: empty cells, not figures of 0
+      f.resize(f.size() + 2 + keys.size() + 8);
     }
-    f.insert(f.end(), {fmt(r.errors.grade), fmt(r.errors.recovery),
-                       r.errors.balance_exact ? "true" : "false", r.method, fmt(r.residual_p95),
-                       std::to_string(r.steps_at_cap), fmt(r.penetration_relative),
-                       r.contact_model});
     for (std::size_t i = 0; i < f.size(); ++i) text.append(i ? "," : "").append(f[i]);
     text += '\n';
   }
@@ -731,9 +743,25 @@ void check_reference(const fs::path& reference) {
     if (!fs::is_regular_file(reference / file))
       throw std::invalid_argument("--reference " + reference.string() + ": no " + file +
                                   ", expected the output folder of a complete run");
+  if (!completed(reference))
+    throw std::invalid_argument("--reference " + reference.string() +
+                                ": its summary.json does not say the run completed, expected "
+                                "the output folder of a complete run");
+}
+
+// The reference the study chose among its cases ran and failed: there is
+// nothing to measure the cases against.
+void check_chosen_reference(const fs::path& reference) {
+  if (completed(reference)) return;
+  throw std::runtime_error("the reference, the finest case, " + reference.string() +
+                           ", did not complete (its partial/summary.json says why): run it "
+                           "again, or name another run with --reference");
 }
 
 int run(const Options& o) {
+  if (const auto file = file_in_the_way(o.out_dir))
+    throw std::invalid_argument("-o " + o.out_dir.string() + ": " + file->string() +
+                                " is not a folder, expected a folder's path (made if missing)");
   if (!o.reference.empty()) check_reference(o.reference);
   if (o.scheduler == Scheduler::Slurm) return write_slurm(o);
   if (o.scheduler == Scheduler::Parallel && !o.only_case && !run_with_parallel(o)) return 3;
@@ -747,6 +775,7 @@ int run(const Options& o) {
   const bool ok = run_cases(o, cases);
   const fs::path reference =
       o.reference.empty() ? case_dir(o, cases[finest_case(o, cases)]) : o.reference;
+  if (o.reference.empty()) check_chosen_reference(reference);
   const Reference tables = read_reference(reference);
   std::vector<Row> rows;
   for (const Case& c : cases) rows.push_back(read_row(o, c, tables));
