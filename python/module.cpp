@@ -138,9 +138,19 @@ class Watch {
 };
 
 // With the GIL released, one run at a time: a run holds the process's
-// SIGINT and SIGTERM handlers and OpenMP's thread count while it goes.
+// SIGINT and SIGTERM handlers and OpenMP's thread count while it goes. A
+// run started from a running one's progress callback (its own thread)
+// would wait for itself for ever: it is an error.
 RunResult run_released(const Simulation& sim, const RunOptions& options) {
   static std::mutex one_at_a_time;
+  thread_local bool running = false;
+  if (running)
+    throw std::runtime_error(
+        "a run is going in this thread: Scene.run cannot be called from a progress callback");
+  running = true;
+  const struct Done {
+    ~Done() { running = false; }
+  } done;
   const py::gil_scoped_release release;
   const std::lock_guard lock(one_at_a_time);
   return ces::run(sim, options);

@@ -199,6 +199,16 @@ class ProgressTest(Case):
         with self.assertRaises(KeyboardInterrupt):  # Python's own handler is back
             os.kill(os.getpid(), signal.SIGINT)
 
+    def test_a_run_from_a_progress_callback_is_an_error(self):
+        scene = ces_sim.load(TINY)
+
+        def nested(time, particles, fraction):
+            scene.run(self.dir / "inner")
+
+        with self.assertRaisesRegex(RuntimeError, "cannot be called from a progress callback"):
+            scene.run(self.dir / "run", progress=nested, progress_every=0)
+        scene.run(self.dir / "after")  # the thread runs again
+
     def test_not_callable_is_a_type_error(self):
         with self.assertRaises(TypeError):
             ces_sim.load(TINY).run(self.dir / "run", progress=3)
