@@ -17,8 +17,10 @@ namespace {
 constexpr double kLargestPart = 20.0;      // m
 constexpr double kSmallestMachine = 0.01;  // m
 // A separator's drum is centimetres to decimetres in radius: over a metre
-// is CAD in mm read as inches or centimetres.
-constexpr double kLargestDrumRadius = 1.0;  // m
+// is CAD in mm read as inches or centimetres, under two centimetres CAD in
+// inches or centimetres read as mm.
+constexpr double kLargestDrumRadius = 1.0;    // m
+constexpr double kSmallestDrumRadius = 0.02;  // m
 
 std::string list_names(const std::vector<std::string>& names) {
   std::string s;
@@ -201,8 +203,7 @@ Placed place(const Part& part, const Rule& rule, const Annotations& a, Names& na
     case Role::Electrode:
       if (!recover_cylinder(p, a.fit_tolerance, warnings))
         throw InputError(label(p) + " is not a cylinder, which an electrode must be");
-      check_wire(p);
-      p.output = Output::Electrode;
+      p.output = Output::Electrode;  // its wire is checked once the units are
       break;
     case Role::FeedOutlet:
       p.output = Output::Feed;
@@ -250,7 +251,8 @@ void check_units(const Machine& m, const UnitChoice& units) {
     check_cylinder_length(p);
   }
   for (const Placed& p : m.parts)
-    if (p.rule->role == Role::Drum && p.cylinder && p.cylinder->radius > kLargestDrumRadius)
+    if (p.rule->role == Role::Drum && p.cylinder &&
+        !(p.cylinder->radius >= kSmallestDrumRadius && p.cylinder->radius <= kLargestDrumRadius))
       throw InputError(label(p) + " has a radius of " + metres(p.cylinder->radius) +
                        ", so the units look wrong: the CAD was read in " + units.how +
                        unit_suggestion(all.size().maxCoeff(), units));
@@ -355,6 +357,8 @@ Machine assemble(std::vector<Part> parts, const Annotations& a, const UnitChoice
                          " (give them a role, or role: ignore)");
   if (m.parts.empty()) throw InputError("no part has a role, so there is nothing to export");
   check_units(m, units);
+  for (const Placed& p : m.parts)
+    if (p.output == Output::Electrode) check_wire(p);
   name_mesh_files(m);
   return m;
 }

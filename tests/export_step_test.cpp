@@ -143,6 +143,22 @@ Exported export_edited(const fs::path& step, const fs::path& work) {
   return run(step, read_text(kSourceRoot / "meshes/ces/annotations.yaml"), work);
 }
 
+// The reference machine read in inches: the unit slip is named before any
+// part's own check (its wire, 2.54 mm thick, is too thick to ionise).
+TEST(ExportStep, AUnitSlipIsNamedBeforeThePartsChecks) {
+  const fs::path work = fresh_dir("export_step_inches");
+  const Exported e =
+      run(kSourceRoot / "meshes/ces/ces_machine.step",
+          "units: in\n" + read_text(kSourceRoot / "meshes/ces/annotations.yaml"), work);
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(
+      e.err.find("so the units look wrong: the CAD was read in in (units in the "
+                 "annotations; the file says millimetre); if the CAD is in mm, set units: mm"),
+      std::string::npos)
+      << e.err;
+  EXPECT_EQ(e.err.find("too thick"), std::string::npos) << e.err;
+}
+
 // A product named with a character past ASCII (STEP's \X2\ escape) keeps
 // it, as UTF-8: the annotations name it as the CAD shows it, and the
 // report, JSON, holds it (an ASCII conversion made 'St\xE4nder', which

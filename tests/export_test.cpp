@@ -580,6 +580,13 @@ TEST(ExportBadInput, UnitsThatLookWrong) {
   EXPECT_EQ(large.code, 2);
   EXPECT_NE(large.err.find("drum 'drum' is 320 m across"), std::string::npos) << large.err;
   EXPECT_NE(large.err.find("set units: mm"), std::string::npos) << large.err;
+  write_stl_machine(work / "inches", 1 / 25.4);  // drawn in inches, read as mm: r 6.3 mm
+  const Exported inches = run(work / "inches", machine_annotations("[0, 0, 1]"), work);
+  EXPECT_EQ(inches.code, 2);
+  EXPECT_NE(inches.err.find("drum 'drum' has a radius of 6.299 mm, so the units look wrong"),
+            std::string::npos)
+      << inches.err;
+  EXPECT_NE(inches.err.find("set units: in"), std::string::npos) << inches.err;
 }
 
 // `units: in` on CAD drawn in mm makes a drum 4 m in radius: named as the
