@@ -492,6 +492,14 @@ void note_domain(std::vector<scene::Diagnostic>& found, const Bounds& domain) {
           "y, z]}} in the annotations)";
 }
 
+// The scene is named after its CAD: the STEP file's stem, or the folder's
+// name of STL/OBJ files, however the path is written ("cad/", ".").
+std::string scene_name(const std::string& input) {
+  fs::path p = absolute_path(input);
+  if (p.filename().empty()) p = p.parent_path();
+  return p.stem().string();
+}
+
 void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
   const Annotations a = read_annotations(o.annotations);
   std::set<std::string> included = included_keys(a, o.include_paths);
@@ -501,8 +509,7 @@ void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
   const UnitChoice units = cad.units;
   const Machine m = assemble(std::move(cad.parts), a, units);
   std::vector<std::string> warnings = m.warnings;
-  const SceneSetup setup{fs::path(o.input).stem().string(), folder / "scene.yaml",
-                         std::move(included)};
+  const SceneSetup setup{scene_name(o.input), folder / "scene.yaml", std::move(included)};
   std::set<std::string> made;
   for (const char* key : {"gravity", "domain"})
     if (!a.root->find(key) && !setup.included_keys.count(key)) made.insert(key);

@@ -764,6 +764,17 @@ TEST(ExportStl, ExportingAgainWritesThroughNoLink) {
   EXPECT_EQ(read_text(first.folder / "scene.yaml"), before);
 }
 
+// The scene is named after the CAD folder however its path ends: "cad/"
+// (as a shell completes it) named it "", which the loader refused at a
+// line of the annotations that has no name key.
+TEST(ExportStl, AFolderWithATrailingSlashNamesTheScene) {
+  const fs::path work = fresh_dir("export_trailing_slash");
+  write_stl_machine(work / "cad");
+  const Exported e = run(work / "cad" / "", machine_annotations("[0, 0, -1]"), work);
+  ASSERT_EQ(e.code, 0) << e.err;
+  EXPECT_EQ(e.scene["name"].as<std::string>(), "cad");
+}
+
 // A part is named after its file, and a name goes into the scene and the
 // JSON report: a file name that is not UTF-8 (Latin-1 'Schraube_\xe4')
 // is refused naming the file, where the report's writer threw (exit 4).
