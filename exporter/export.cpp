@@ -8,6 +8,7 @@
 #include <fstream>
 #include <map>
 #include <set>
+#include <utility>
 
 #include "annotations.hpp"
 #include "builder.hpp"
@@ -500,15 +501,17 @@ std::string scene_name(const std::string& input) {
   return p.stem().string();
 }
 
-void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
+// `warnings` gathers what the export noticed; the caller prints them
+// whether it succeeds or not (a failure's cause is often among them).
+void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err,
+                std::vector<std::string>& warnings) {
   const Annotations a = read_annotations(o.annotations);
   std::set<std::string> included = included_keys(a, o.include_paths);
   const fs::path folder = output_folder(o.output);
   check_output(folder);
   Cad cad = read_cad(o.input, a);
   const UnitChoice units = cad.units;
-  const Machine m = assemble(std::move(cad.parts), a, units);
-  std::vector<std::string> warnings = m.warnings;
+  const Machine m = assemble(std::move(cad.parts), a, units, warnings);
   const SceneSetup setup{scene_name(o.input), folder / "scene.yaml", std::move(included)};
   std::set<std::string> made;
   for (const char* key : {"gravity", "domain"})
@@ -538,24 +541,32 @@ void export_all(const ExportOptions& o, std::ostream& out, std::ostream& err) {
     throw scene::SceneError(found);
   }
   publish(temp.path(), folder, written_files(report));
-  for (const std::string& w : warnings) err << "warning: " << w << "\n";
+  for (const std::string& w : std::exchange(warnings, {})) err << "warning: " << w << "\n";
   if (!o.quiet) print_summary(out, {o, a, units, m, sim, made, check.include_paths});
 }
 
 }  // namespace
 
 int run_export(const ExportOptions& options, std::ostream& out, std::ostream& err) {
+  std::vector<std::string> warnings;
+  const auto noticed = [&] {
+    for (const std::string& w : warnings) err << "warning: " << w << "\n";
+  };
   try {
-    export_all(options, out, err);
+    export_all(options, out, err, warnings);
     return kExitOk;
   } catch (const scene::SceneError& e) {
+    noticed();
     for (const scene::Diagnostic& d : e.diagnostics()) err << d.str() << "\n";
     err << "ces-export: nothing written\n";
   } catch (const InputError& e) {
+    noticed();
     err << "error: " << e.what() << "\nces-export: nothing written\n";
   } catch (const fs::filesystem_error& e) {
+    noticed();
     err << "error: " << e.what() << "\nces-export: nothing written\n";
   } catch (const std::exception& e) {
+    noticed();
     err << "internal error: " << e.what() << "\n";
     return kExitInternal;
   }

@@ -262,8 +262,10 @@ void check_units(const Machine& m, const UnitChoice& units) {
                      unit_suggestion(all.size().maxCoeff(), units));
 }
 
-// The first drum that is a cylinder, in CAD coordinates.
-std::optional<Cylinder> find_drum(const std::vector<Part>& parts, const Annotations& a) {
+// The first drum that is a cylinder, in CAD coordinates; `why` says what
+// kept each drum from being one.
+std::optional<Cylinder> find_drum(const std::vector<Part>& parts, const Annotations& a,
+                                  std::string& why) {
   for (const Part& part : parts) {
     const Rule* r = rule_for(a, part);
     if (!r || r->role != Role::Drum) continue;
@@ -272,8 +274,9 @@ std::optional<Cylinder> find_drum(const std::vector<Part>& parts, const Annotati
     p.rule = r;
     p.mesh = part.mesh;
     clean(p.mesh, weld_tolerance(p.mesh));
-    std::vector<std::string> unused;  // place() reports them once the frame is set
-    if (recover_cylinder(p, a.fit_tolerance, unused)) return p.cylinder;
+    std::vector<std::string> noticed;  // place() reports them once the frame is set
+    if (recover_cylinder(p, a.fit_tolerance, noticed)) return p.cylinder;
+    for (const std::string& w : noticed) why += (why.empty() ? "" : "; ") + w;
   }
   return std::nullopt;
 }
@@ -287,10 +290,12 @@ struct Rigid {
 Rigid frame_of(const std::vector<Part>& parts, const Annotations& a) {
   const Frame& f = a.frame;
   if (!f.given) return {};
-  const auto drum = find_drum(parts, a);
+  std::string why;
+  const auto drum = find_drum(parts, a, why);
   if (f.origin_at_drum && !drum)
     throw InputError(where(f.mark) +
-                     "frame: origin is drum, but no part with role drum is a cylinder");
+                     "frame: origin is drum, but no part with role drum is a cylinder" +
+                     (why.empty() ? "" : " (" + why + ")"));
   Vec3 z = f.axis ? *f.axis : drum ? drum->axis : Vec3::UnitZ();
   if (std::abs(z.dot(f.up)) > 1e-6)
     throw InputError(where(f.mark) + "frame: " + (f.axis ? "axis " : "the drum's axis ") +
@@ -334,7 +339,8 @@ std::string label(const Placed& p) {
   return std::string(role_name(p.rule->role)) + " '" + p.part->name + "'";
 }
 
-Machine assemble(std::vector<Part> parts, const Annotations& a, const UnitChoice& units) {
+Machine assemble(std::vector<Part> parts, const Annotations& a, const UnitChoice& units,
+                 std::vector<std::string>& warnings) {
   check_rules(parts, a);
   Machine m;
   const Rigid frame = frame_of(parts, a);
@@ -349,12 +355,12 @@ Machine assemble(std::vector<Part> parts, const Annotations& a, const UnitChoice
     else if (r->role == Role::Ignore)
       m.ignored.push_back(part.name);
     else
-      m.parts.push_back(place(part, *r, a, names, m.warnings));
+      m.parts.push_back(place(part, *r, a, names, warnings));
   }
   if (!m.unassigned.empty())
-    m.warnings.push_back(std::to_string(m.unassigned.size()) +
-                         " part(s) have no role and are left out: " + list_names(m.unassigned) +
-                         " (give them a role, or role: ignore)");
+    warnings.push_back(std::to_string(m.unassigned.size()) +
+                       " part(s) have no role and are left out: " + list_names(m.unassigned) +
+                       " (give them a role, or role: ignore)");
   if (m.parts.empty()) throw InputError("no part has a role, so there is nothing to export");
   check_units(m, units);
   for (const Placed& p : m.parts)

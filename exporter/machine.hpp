@@ -40,7 +40,6 @@ struct Machine {
   std::vector<Placed> parts;
   std::vector<std::string> unassigned;  // no rule matched: ignored, with a warning
   std::vector<std::string> ignored;     // role: ignore
-  std::vector<std::string> warnings;
 };
 
 // How the CAD's length unit was chosen, for messages about sizes.
@@ -51,7 +50,9 @@ struct UnitChoice {
 
 // Throws scene::SceneError when a rule matches no part or misuses `name`,
 // InputError when a part cannot be what its role needs, the units look
-// wrong or the frame cannot be built.
-Machine assemble(std::vector<Part> parts, const Annotations& annotations, const UnitChoice& units);
+// wrong or the frame cannot be built. Adds what it notices to `warnings`,
+// also when it throws.
+Machine assemble(std::vector<Part> parts, const Annotations& annotations, const UnitChoice& units,
+                 std::vector<std::string>& warnings);
 
 }  // namespace ces::exporter

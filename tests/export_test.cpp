@@ -764,6 +764,24 @@ TEST(ExportStl, ExportingAgainWritesThroughNoLink) {
   EXPECT_EQ(read_text(first.folder / "scene.yaml"), before);
 }
 
+// What the export noticed is printed when it fails too: why a part is not
+// the cylinder its role needs is in the warning the fit gives.
+TEST(ExportStl, AFailedExportPrintsItsWarnings) {
+  const fs::path work = fresh_dir("export_failed_warnings");
+  write_stl_machine(work / "cad");
+  std::string annotations = machine_annotations("[0, 0, -1]");
+  const std::string hopper = "hopper: {role: hopper, material: steel}";
+  annotations.replace(annotations.find(hopper), hopper.size(),
+                      "hopper: {role: electrode, voltage: -30 kV}");
+  const Exported e = run(work / "cad", annotations, work);
+  EXPECT_EQ(e.code, 2);
+  const std::size_t warning = e.err.find("warning: electrode 'hopper'");
+  const std::size_t error = e.err.find("error: electrode 'hopper' is not a cylinder");
+  ASSERT_NE(warning, std::string::npos) << e.err;
+  ASSERT_NE(error, std::string::npos) << e.err;
+  EXPECT_LT(warning, error) << e.err;
+}
+
 // The scene is named after the CAD folder however its path ends: "cad/"
 // (as a shell completes it) named it "", which the loader refused at a
 // line of the annotations that has no name key.
